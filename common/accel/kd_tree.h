@@ -1,0 +1,103 @@
+// SAH kd-tree over a triangle array, with Wald's 8-byte nodes and 48-byte triangle records
+// (Wald, Slusallek, Benthin, Wagner 2001, sections 2.1-2.2).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/math/aabb.h"
+
+namespace rtc {
+
+/// 8 bytes. Inner node: bits = (index of the left child << 2) | axis (0, 1, 2), children
+/// adjacent (right = left + 1), `split` the plane position. Leaf: bits = (offset into
+/// KdTree::prim_refs << 2) | 3, `count` the number of triangle references.
+struct KdNode {
+  std::uint32_t bits = 3;
+  union {
+    float split;
+    std::uint32_t count = 0;
+  };
+
+  [[nodiscard]] bool is_leaf() const { return (bits & 3u) == 3u; }
+  [[nodiscard]] int axis() const { return static_cast<int>(bits & 3u); }
+  [[nodiscard]] std::uint32_t left() const { return bits >> 2; }
+  [[nodiscard]] std::uint32_t prim_offset() const { return bits >> 2; }
+};
+static_assert(sizeof(KdNode) == 8);
+
+/// Wald's projected-barycentric triangle record, 48 bytes (three 16-byte rows). The plane is
+/// n_k x_k + n_u x_u + n_v x_v = n_d with n_k = 1, k the dominant normal axis, u = (k+1)%3,
+/// v = (k+2)%3; beta = b_nu*h_u + b_nv*h_v + b_d and gamma = c_nu*h_u + c_nv*h_v + c_d are the
+/// barycentric weights of vertices 1 and 2 for the projected hit point h.
+struct alignas(16) TriAccel {
+  float n_u = 0, n_v = 0, n_d = 0;
+  std::uint32_t k = 3;  ///< 3 marks a degenerate triangle that never hits
+  float b_nu = 0, b_nv = 0, b_d = 0;
+  std::uint32_t pad0 = 0;
+  float c_nu = 0, c_nv = 0, c_d = 0;
+  std::uint32_t pad1 = 0;
+};
+static_assert(sizeof(TriAccel) == 48);
+
+/// Build parameters: the SAH cost model (Wald & Havran 2006) and termination limits.
+struct KdBuildOptions {
+  float traversal_cost = 1.0f;     ///< K_T, cost of one traversal step
+  float intersection_cost = 1.5f;  ///< K_I, cost of one triangle test
+  float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space
+  int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
+  int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves
+  int threads = 0;                 ///< 0: all cores (TBB's default)
+};
+
+/// What a build produced; `to_string` gives the one-line summary the tools log.
+struct KdBuildStats {
+  double build_ms = 0;
+  std::uint64_t triangles = 0;
+  std::uint64_t degenerate = 0;  ///< zero-area triangles left out of the tree
+  std::uint64_t nodes = 0;
+  std::uint64_t leaves = 0;
+  std::uint64_t empty_leaves = 0;
+  std::uint64_t prim_refs = 0;
+  int max_depth = 0;
+  double mean_tris_per_leaf = 0;  ///< over non-empty leaves
+  double sah_cost = 0;            ///< expected cost of a random ray through the root
+  [[nodiscard]] std::string to_string() const;
+};
+
+/// An immutable kd-tree. Triangle ids are indices into the arrays given to build(). Thread-safe
+/// for concurrent queries after construction.
+class KdTree {
+ public:
+  KdTree() = default;
+
+  /// Builds over triangles (indices into positions). O(N log N): events sorted once per axis,
+  /// then each node's sorted lists are split in linear time. Parallel over subtrees with TBB.
+  /// The tree is a pure function of the input and options (not of the thread count).
+  static KdTree build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
+                      const KdBuildOptions& options = {});
+
+  [[nodiscard]] const std::vector<KdNode>& nodes() const { return nodes_; }
+  [[nodiscard]] const std::vector<std::uint32_t>& prim_refs() const { return prim_refs_; }
+  [[nodiscard]] const std::vector<TriAccel>& tri_accel() const { return tri_accel_; }
+  /// Scene bounds, slightly enlarged so rays that graze the outermost triangles still enter.
+  [[nodiscard]] const Aabb& bounds() const { return bounds_; }
+  [[nodiscard]] const KdBuildStats& stats() const { return stats_; }
+  [[nodiscard]] bool empty() const { return nodes_.empty(); }
+
+ private:
+  std::vector<KdNode> nodes_;
+  std::vector<std::uint32_t> prim_refs_;
+  std::vector<TriAccel> tri_accel_;
+  Aabb bounds_;
+  KdBuildStats stats_;
+};
+
+/// The 48-byte record for triangle (a, b, c); k = 3 when the triangle has zero area.
+[[nodiscard]] TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+
+}  // namespace rtc

@@ -1,0 +1,42 @@
+// Errors for bad input: every message names the place (file and line, JSON field, peer).
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace rtc {
+
+/// Thrown for bad input (scene files, meshes, messages, command lines). The message names
+/// the place and the reason; `main` prints it and exits non-zero, library code never exits.
+class Error : public std::runtime_error {
+ public:
+  explicit Error(const std::string& message) : std::runtime_error(message) {}
+};
+
+/// "file:line: message" (line 0 leaves the line out).
+[[nodiscard]] std::string at_location(std::string_view file, std::uint64_t line, std::string_view message);
+
+/// Throws rtc::Error("file:line: message").
+[[noreturn]] void throw_at(std::string_view file, std::uint64_t line, std::string_view message);
+
+namespace detail {
+[[noreturn]] void check_failed(const char* expr, const char* file, int line, const char* message);
+}  // namespace detail
+
+}  // namespace rtc
+
+/// Guards our own invariants (never untrusted bytes); aborts with a message when false.
+#define RTC_CHECK(cond, msg)                                                      \
+  do {                                                                            \
+    if (!(cond)) ::rtc::detail::check_failed(#cond, __FILE__, __LINE__, (msg));   \
+  } while (0)
+
+#ifdef NDEBUG
+#define RTC_DCHECK(cond, msg) \
+  do {                        \
+  } while (0)
+#else
+#define RTC_DCHECK(cond, msg) RTC_CHECK(cond, msg)
+#endif

@@ -1,0 +1,63 @@
+// ISA names and CPU detection (GCC's __builtin_cpu_supports reads CPUID and XCR0).
+#include "common/base/isa.h"
+
+#include "common/base/error.h"
+
+namespace rtc {
+
+std::string_view isa_name(Isa isa) {
+  switch (isa) {
+    case Isa::Sse42:
+      return "sse4.2";
+    case Isa::Avx2:
+      return "avx2";
+    case Isa::Avx512:
+      return "avx512";
+  }
+  return "unknown";
+}
+
+Isa parse_isa(std::string_view name) {
+  if (name == "sse4" || name == "sse42" || name == "sse4.2") return Isa::Sse42;
+  if (name == "avx2") return Isa::Avx2;
+  if (name == "avx512") return Isa::Avx512;
+  throw Error("unknown ISA \"" + std::string(name) + "\" (expected sse4, avx2 or avx512)");
+}
+
+bool cpu_supports(Isa isa) {
+  __builtin_cpu_init();
+  switch (isa) {
+    case Isa::Sse42:
+      return __builtin_cpu_supports("sse4.2") && __builtin_cpu_supports("popcnt");
+    case Isa::Avx2:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case Isa::Avx512:
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+             __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
+  }
+  return false;
+}
+
+std::vector<Isa> compiled_isas() {
+  std::vector<Isa> out;
+#ifdef RTC_HAVE_ISA_SSE42
+  out.push_back(Isa::Sse42);
+#endif
+#ifdef RTC_HAVE_ISA_AVX2
+  out.push_back(Isa::Avx2);
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+  out.push_back(Isa::Avx512);
+#endif
+  return out;
+}
+
+Isa best_isa() {
+  const std::vector<Isa> isas = compiled_isas();
+  for (auto it = isas.rbegin(); it != isas.rend(); ++it) {
+    if (cpu_supports(*it)) return *it;
+  }
+  throw Error("this CPU lacks SSE4.2 and POPCNT, the least rtc's kernels need");
+}
+
+}  // namespace rtc

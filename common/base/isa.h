@@ -1,0 +1,25 @@
+// Instruction-set levels the packet kernels are compiled for, and run-time CPU detection.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rtc {
+
+/// Kernel ISA levels, lowest first. Part 1 of the tracer builds sse42 only; avx2 and avx512
+/// slot in here and in cmake/rtc_isa.cmake.
+enum class Isa { Sse42 = 0, Avx2 = 1, Avx512 = 2 };
+
+[[nodiscard]] std::string_view isa_name(Isa isa);
+/// Parses "sse4"/"sse42"/"sse4.2", "avx2", "avx512"; throws rtc::Error on anything else.
+[[nodiscard]] Isa parse_isa(std::string_view name);
+/// Whether this CPU can run kernels of that level.
+[[nodiscard]] bool cpu_supports(Isa isa);
+/// The ISAs compiled into this binary, lowest first.
+[[nodiscard]] std::vector<Isa> compiled_isas();
+/// The best ISA that is both compiled in and supported by this CPU; throws rtc::Error when the
+/// CPU lacks even SSE4.2.
+[[nodiscard]] Isa best_isa();
+
+}  // namespace rtc

@@ -1,0 +1,95 @@
+// Output file names for frame sequences: "f_####.exr", "f_%04d.exr" or an inserted "_NNNN".
+#include "common/image/image.h"
+
+#include <cstddef>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "common/base/error.h"
+
+namespace rtc {
+namespace {
+
+// Wide enough for any int frame number (2147483647 has 10 digits).
+constexpr std::size_t kMaxPrintfWidth = 10;
+constexpr std::size_t kInsertedWidth = 4;
+
+std::string zero_padded(int frame, std::size_t width) {
+  std::string digits = std::to_string(frame);
+  if (digits.size() < width) digits.insert(0, width - digits.size(), '0');
+  return digits;
+}
+
+[[noreturn]] void bad_pattern(const std::string& pattern, const std::string& reason) {
+  throw Error(fmt::format("output pattern '{}': {}", pattern, reason));
+}
+
+}  // namespace
+
+std::string expand_frame_pattern(const std::string& pattern, int frame, bool multiple_frames) {
+  if (pattern.empty()) bad_pattern(pattern, "is empty");
+  if (frame < 0) bad_pattern(pattern, fmt::format("frame number {} is negative", frame));
+  if (pattern.back() == '/') bad_pattern(pattern, "has no file name");
+
+  std::string out;
+  int placeholders = 0;
+  std::size_t i = 0;
+  while (i < pattern.size()) {
+    const char c = pattern[i];
+    if (c == '#') {
+      std::size_t end = i;
+      while (end < pattern.size() && pattern[end] == '#') ++end;
+      out += zero_padded(frame, end - i);
+      ++placeholders;
+      i = end;
+    } else if (c == '%') {
+      if (i + 1 < pattern.size() && pattern[i + 1] == '%') {
+        out += '%';
+        i += 2;
+        continue;
+      }
+      // Only "%d" and "%0Nd": space padding or other conversions make odd file names.
+      std::size_t end = i + 1;
+      std::size_t width = 0;
+      if (end < pattern.size() && pattern[end] == '0') {
+        ++end;
+        const std::size_t digits_begin = end;
+        while (end < pattern.size() && pattern[end] >= '0' && pattern[end] <= '9' &&
+               end - digits_begin < 3) {
+          width = 10 * width + static_cast<std::size_t>(pattern[end] - '0');
+          ++end;
+        }
+        if (width == 0 || width > kMaxPrintfWidth) end = pattern.size();  // reported below
+      }
+      if (end >= pattern.size() || pattern[end] != 'd') {
+        bad_pattern(pattern, fmt::format("unsupported placeholder at offset {} (use a run of '#', "
+                                         "\"%d\" or \"%0Nd\" with N from 1 to {}, and \"%%\" "
+                                         "for '%')",
+                                         i, kMaxPrintfWidth));
+      }
+      out += zero_padded(frame, width);
+      ++placeholders;
+      i = end + 1;
+    } else {
+      out += c;
+      ++i;
+    }
+  }
+  if (placeholders > 1) {
+    bad_pattern(pattern,
+                fmt::format("has {} frame placeholders; a name can hold only one", placeholders));
+  }
+  if (placeholders == 0 && multiple_frames) {
+    // The extension belongs to the file name only ("v1.2/out" has none); a leading dot is a
+    // hidden file, not an extension.
+    const std::size_t name_begin = out.rfind('/') == std::string::npos ? 0 : out.rfind('/') + 1;
+    const std::size_t dot = out.rfind('.');
+    const std::size_t insert_at =
+        (dot == std::string::npos || dot <= name_begin) ? out.size() : dot;
+    out.insert(insert_at, fmt::format("_{}", zero_padded(frame, kInsertedWidth)));
+  }
+  return out;
+}
+
+}  // namespace rtc

@@ -1,0 +1,112 @@
+// Frames and tiles in memory, their files (EXR, PNG, TIFF, JPEG, PPM), sRGB and frame names.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rtc {
+
+/// A frame or tile: linear RGBA float, row 0 at the top; optional depth (primary hit
+/// distance, +inf for background) and normal (world-space shading normal, 0 for background).
+/// Alpha is stored as given: nothing here premultiplies or un-premultiplies. A plain value
+/// type, not thread-safe for concurrent writes.
+struct Image {
+  int width = 0, height = 0;
+  std::vector<float> rgba;    // 4 * width * height, pixel (x, y) at 4 * (y * width + x)
+  std::vector<float> depth;   // empty or width * height
+  std::vector<float> normal;  // empty or 3 * width * height
+
+  Image() = default;
+  /// Zero RGBA; depth +inf and normal 0 (the background values) when asked for.
+  /// Negative sizes are a caller bug (RTC_CHECK).
+  Image(int w, int h, bool with_depth = false, bool with_normal = false);
+
+  [[nodiscard]] bool has_depth() const { return !depth.empty(); }
+  [[nodiscard]] bool has_normal() const { return !normal.empty(); }
+
+  /// The 4 RGBA floats of pixel (x, y); bounds are checked in debug builds only.
+  float* pixel(int x, int y);
+  const float* pixel(int x, int y) const;
+
+  /// Copies `tile` into this image at (x0, y0): RGBA always, depth and normal when present
+  /// in both. Throws rtc::Error naming both rectangles when the tile does not fit, or when
+  /// either image's channel vectors do not match its size (tiles arrive from peers).
+  void blit(const Image& tile, int x0, int y0);
+};
+
+enum class ExrPixelType { Half, Float };
+
+struct ImageWriteOptions {
+  /// EXR storage of RGBA and N (Z is always float: depth needs more than half's 11 bits).
+  ExrPixelType exr_type = ExrPixelType::Half;
+  bool write_depth = true;   // EXR only: channel "Z" when the image has depth
+  bool write_normal = true;  // EXR only: channels "N.X", "N.Y", "N.Z" when it has normals
+  /// String attributes stored in the file header (EXR attributes, PNG text chunks, TIFF and
+  /// JPEG where the format has room), e.g. {"rtc:scene", "sponza.json"}.
+  std::vector<std::pair<std::string, std::string>> metadata;
+};
+
+/// Writes `image` in the format named by the extension (case-insensitive):
+///   .exr         one part, channels "R" "G" "B" "A" (half or float per options), "Z" (float),
+///                "N.X" "N.Y" "N.Z" (like RGBA), linear, zip compression;
+///   .png         8-bit sRGB RGBA (linear_to_srgb8 on RGB, alpha round(255 * a));
+///   .tif/.tiff   32-bit float linear RGBA;
+///   .jpg/.jpeg   8-bit sRGB RGB, alpha dropped;
+///   .ppm         8-bit sRGB RGB (binary P6), alpha dropped.
+/// The parent folder must exist (it is not created). The pixels go to a temporary file in the
+/// same folder that is flushed to disk and then renamed over `path`, so a crash never leaves
+/// a half-written frame under the final name. Throws rtc::Error naming the file and the reason
+/// (missing folder, unknown extension, OpenImageIO's message); no temporary file is left behind.
+/// EXR and TIFF headers carry the write time (OpenImageIO adds "DateTime" unless `metadata`
+/// sets it), so compare frames with image_hash(read_image(...)), not file bytes.
+/// Safe to call from several threads for different paths.
+void write_image(const std::filesystem::path& path, const Image& image,
+                 const ImageWriteOptions& options = {});
+
+/// Reads the first subimage of any OpenImageIO-readable file as linear float RGBA: 8- and
+/// 16-bit integer files are sRGB-decoded on RGB (8-bit exactly, by srgb8_to_linear) unless
+/// the file says it is linear, float files are taken as linear; alpha is 1 when absent, gray
+/// files fill R, G and B. Depth comes from a "Z" channel and normals from "N.X" "N.Y" "N.Z"
+/// when present. Throws rtc::Error naming the file and the reason. For tests and tools.
+Image read_image(const std::filesystem::path& path);
+
+/// What a file holds, read from its header only. For tests and tools.
+struct ImageFileInfo {
+  int width = 0, height = 0;
+  std::vector<std::string> channel_names;  // in the order OpenImageIO reports them
+  std::vector<std::string> channel_types;  // per channel: "half", "float", "uint8", ...
+  std::vector<std::pair<std::string, std::string>> metadata;  // the string attributes
+};
+
+/// Throws rtc::Error naming the file and the reason.
+ImageFileInfo read_image_info(const std::filesystem::path& path);
+
+/// Exact sRGB transfer (IEC 61966-2-1) from linear, clamped to [0, 1], rounded to the nearest
+/// 8-bit code: compares against the 255 exact rounding thresholds (precomputed floats), so
+/// every machine gives the same code without calling pow(). NaN gives 0, +inf gives 255.
+/// Scalar, about 10 ns, thread-safe.
+std::uint8_t linear_to_srgb8(float linear);
+
+/// The float nearest to the exact linear value of sRGB code `v`;
+/// linear_to_srgb8(srgb8_to_linear(v)) == v for every v.
+float srgb8_to_linear(std::uint8_t v);
+
+/// The output file name for `frame` (>= 0):
+///   "frames/f_####.exr" -> "frames/f_0007.exr" (a run of '#' gives the zero-padded width),
+///   "frames/f_%04d.exr" -> "frames/f_0007.exr" (printf-style "%d" or "%0Nd"; "%%" is a '%'),
+///   "out.exr" -> "out_0007.exr" when `multiple_frames`, else unchanged (no placeholder:
+///   "_NNNN" goes before the file name's extension, or at the end when it has none).
+/// Wider frame numbers are not cut ("f_##" with 123 gives "f_123"). Throws rtc::Error naming
+/// the pattern for an empty pattern or file name, more than one placeholder, mixed '#' and
+/// '%' placeholders, any other '%' sequence, or a negative frame.
+std::string expand_frame_pattern(const std::string& pattern, int frame, bool multiple_frames);
+
+/// 64-bit FNV-1a over the width, height, which channels are present and the bits of every
+/// float (little-endian), as 16 lowercase hex digits: equal hashes mean equal frames bit for
+/// bit (-0 and +0 differ, NaN payloads count). Same result on every machine.
+std::string image_hash(const Image& image);
+
+}  // namespace rtc

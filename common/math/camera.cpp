@@ -1,0 +1,38 @@
+// CAMERA.md primary rays, computed in double and rounded once.
+#include "common/math/camera.h"
+
+#include <cmath>
+#include <string>
+
+#include "common/base/error.h"
+
+namespace rtc {
+
+CameraRays::CameraRays(const Camera& camera, int width, int height) : width_(width), height_(height) {
+  if (width <= 0 || height <= 0) {
+    throw Error("camera: image size must be positive, got " + std::to_string(width) + "x" +
+                std::to_string(height));
+  }
+  if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f)) {
+    throw Error("camera: vfov_deg must be in (0, 180), got " + std::to_string(camera.vfov_deg));
+  }
+  eye_ = glm::dvec3(camera.eye);
+  const glm::dvec3 view = glm::dvec3(camera.look_at) - eye_;
+  if (!(glm::length(view) > 0.0)) throw Error("camera: eye and look_at coincide");
+  forward_ = glm::normalize(view);
+  const glm::dvec3 side = glm::cross(forward_, glm::dvec3(camera.up));
+  if (!(glm::length(side) > 1e-12)) throw Error("camera: up is parallel to the view direction");
+  right_ = glm::normalize(side);
+  up2_ = glm::cross(right_, forward_);
+  h_ = std::tan(camera.vfov_deg * (3.14159265358979323846 / 180.0) / 2.0);
+}
+
+Ray CameraRays::ray(int x, int y, double sub_x, double sub_y) const {
+  const double w = width_, hgt = height_;
+  const double sx = (2.0 * (x + sub_x) / w - 1.0) * h_ * (w / hgt);
+  const double sy = (1.0 - 2.0 * (y + sub_y) / hgt) * h_;
+  const glm::dvec3 dir = glm::normalize(forward_ + sx * right_ + sy * up2_);
+  return Ray{glm::vec3(eye_), glm::vec3(dir)};
+}
+
+}  // namespace rtc

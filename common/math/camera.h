@@ -1,0 +1,46 @@
+// The pinhole camera of ../shared/scenes/CAMERA.md and its primary rays.
+#pragma once
+
+#include <glm/glm.hpp>
+
+namespace rtc {
+
+/// Camera as in view.json: eye, look_at, up, vertical field of view in degrees.
+struct Camera {
+  glm::vec3 eye{0.0f, 0.0f, 1.0f};
+  glm::vec3 look_at{0.0f, 0.0f, 0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float vfov_deg = 45.0f;
+
+  bool operator==(const Camera&) const = default;
+};
+
+/// A ray in world space; dir need not be normalised for secondary rays.
+struct Ray {
+  glm::vec3 origin{0.0f};
+  glm::vec3 dir{0.0f, 0.0f, 1.0f};
+};
+
+/// Precomputed camera frame for a W x H image. Rays follow CAMERA.md exactly; the frame and
+/// each ray are computed in double and rounded once to float, so every tracer (rtc, the
+/// Embree oracle) that uses this class gets bit-identical rays. Thread-safe after construction.
+class CameraRays {
+ public:
+  /// Throws rtc::Error for a degenerate camera (eye == look_at, up parallel to the view
+  /// direction, vfov outside (0, 180)) or an empty image.
+  CameraRays(const Camera& camera, int width, int height);
+
+  /// Ray through image position (x + sub_x, y + sub_y), row 0 at the top; sub = 0.5 is the
+  /// pixel centre of CAMERA.md.
+  [[nodiscard]] Ray ray(int x, int y, double sub_x = 0.5, double sub_y = 0.5) const;
+
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+
+ private:
+  glm::dvec3 eye_, forward_, right_, up2_;
+  double h_ = 1.0;
+  int width_ = 1, height_ = 1;
+};
+
+}  // namespace rtc

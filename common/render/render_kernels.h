@@ -1,0 +1,38 @@
+// Per-ISA tile kernels behind rtc::Renderer, chosen at run time.
+#pragma once
+
+#include <cstdint>
+
+#include "common/base/isa.h"
+
+namespace rtc {
+
+struct FrameState;
+struct Image;
+
+/// Rays traced for a tile, by kind (added to, not reset).
+struct TileRayCounts {
+  std::uint64_t primary = 0;
+  std::uint64_t shadow = 0;
+  std::uint64_t reflection = 0;
+  TileRayCounts& operator+=(const TileRayCounts& o) {
+    primary += o.primary;
+    shadow += o.shadow;
+    reflection += o.reflection;
+    return *this;
+  }
+  [[nodiscard]] std::uint64_t total() const { return primary + shadow + reflection; }
+};
+
+/// Entry points of one ISA. `render_tile` writes pixels [x0, x0+w) x [y0, y0+h) of the
+/// frame into `out` (already w x h; depth/normal filled when present).
+struct RenderKernels {
+  Isa isa = Isa::Sse42;
+  void (*render_tile)(const FrameState& state, int x0, int y0, int w, int h, bool packets,
+                      Image& out, TileRayCounts& counts) = nullptr;
+};
+
+/// Kernels for `isa`; throws rtc::Error when not compiled in or not supported by this CPU.
+[[nodiscard]] const RenderKernels& render_kernels(Isa isa);
+
+}  // namespace rtc

@@ -1,0 +1,188 @@
+// Renderer: per-frame world-space state, kd-tree reuse, tile dispatch to the per-ISA kernels.
+#include "common/render/renderer.h"
+
+#include <algorithm>
+#include <string>
+
+#include <spdlog/spdlog.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "common/base/error.h"
+#include "common/base/progress.h"
+#include "common/render/render_kernels.h"
+
+namespace rtc {
+
+#ifdef RTC_HAVE_ISA_SSE42
+namespace isa_sse42 {
+const RenderKernels& render_kernels_for_isa();
+}
+#endif
+
+const RenderKernels& render_kernels(Isa isa) {
+  if (!cpu_supports(isa)) throw Error("this CPU does not support " + std::string(isa_name(isa)));
+  switch (isa) {
+#ifdef RTC_HAVE_ISA_SSE42
+    case Isa::Sse42:
+      return isa_sse42::render_kernels_for_isa();
+#endif
+    default:
+      break;
+  }
+  throw Error("ISA " + std::string(isa_name(isa)) + " is not compiled into this build (RTC_ISAS)");
+}
+
+namespace {
+
+void check_settings(const RenderSettings& s) {
+  if (s.max_depth < 0 || s.max_depth > 64) {
+    throw Error("render settings: max_depth must be in [0, 64], got " + std::to_string(s.max_depth));
+  }
+  if (!(s.min_weight >= 0.0f) || !(s.min_weight <= 1.0f)) {
+    throw Error("render settings: min_weight must be in [0, 1], got " + std::to_string(s.min_weight));
+  }
+  if (s.spp < 1 || s.spp > 4096) {
+    throw Error("render settings: spp must be in [1, 4096], got " + std::to_string(s.spp));
+  }
+}
+
+// World-space geometry of all meshes at one pose. Transforms are applied in double and
+// rounded once, so an identity placement reproduces the file's coordinates exactly.
+void flatten(const Scene& scene, const FramePose& pose, FrameState& fs) {
+  std::size_t vertex_count = 0, tri_count = 0;
+  for (const Mesh& m : scene.meshes) {
+    vertex_count += m.positions.size();
+    tri_count += m.triangles.size();
+  }
+  fs.positions.resize(vertex_count);
+  fs.normals.assign(vertex_count, glm::vec3(0.0f));
+  fs.triangles.resize(tri_count);
+  fs.material_ids.resize(tri_count);
+  fs.smooth.resize(tri_count);
+  fs.source_index.resize(tri_count);
+  std::size_t v_base = 0, t_base = 0;
+  std::uint64_t source_base = 0;
+  for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    const Mesh& m = scene.meshes[mi];
+    const glm::dmat4 world(pose.world_from_object.at(mi));
+    const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
+    const bool identity = world == glm::dmat4(1.0);
+    const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
+    for (std::size_t i = 0; i < m.positions.size(); ++i) {
+      fs.positions[v_base + i] =
+          identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
+      if (has_normals) {
+        const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
+        const double len = glm::length(n);
+        fs.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+      }
+    }
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      fs.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
+      const std::uint32_t mat = t < m.material_ids.size() ? m.material_ids[t] : 0u;
+      fs.material_ids[t_base + t] = mat < scene.materials.size() ? mat : 0u;
+      fs.smooth[t_base + t] = has_normals ? 1 : 0;
+      const std::uint64_t src = t < m.source_index.size() ? m.source_index[t] : t;
+      fs.source_index[t_base + t] = static_cast<std::uint32_t>(source_base + src);
+    }
+    source_base += m.triangles.size() + m.dropped_degenerate;
+    v_base += m.positions.size();
+    t_base += m.triangles.size();
+  }
+}
+
+}  // namespace
+
+std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
+                                              const KdBuildOptions& kd) {
+  check_settings(settings);
+  auto fs = std::make_shared<FrameState>();
+  const FramePose pose = pose_at(scene, frame);
+  fs->frame = frame;
+  fs->width = scene.width;
+  fs->height = scene.height;
+  fs->camera = pose.camera;
+  fs->camera_rays = CameraRays(pose.camera, scene.width, scene.height);
+  fs->materials = scene.materials;
+  if (fs->materials.empty()) fs->materials.emplace_back();
+  fs->lights = pose.lights;
+  fs->background = scene.background;
+  fs->ambient = scene.ambient;
+  fs->settings = settings;
+  flatten(scene, pose, *fs);
+  fs->tree = KdTree::build(fs->positions, fs->triangles, kd);
+  return fs;
+}
+
+Renderer::Renderer(Scene scene, RenderOptions options)
+    : scene_(std::move(scene)), options_(std::move(options)), isa_(options_.isa.value_or(best_isa())) {
+  (void)render_kernels(isa_);  // fail now, not in the first tile
+  check_settings(options_.settings.value_or(scene_.settings));
+  (void)CameraRays(scene_.camera, scene_.width, scene_.height);
+}
+
+std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
+  const RenderSettings settings = options_.settings.value_or(scene_.settings);
+  const FramePose pose = pose_at(scene_, frame);
+  if (last_ && last_->frame == frame) return last_;
+  // Reuse the geometry and tree when no mesh moved: camera-only and light-only animations
+  // then cost no rebuild.
+  if (last_) {
+    const FramePose prev = pose_at(scene_, last_->frame);
+    if (prev.world_from_object == pose.world_from_object) {
+      auto fs = std::make_shared<FrameState>(*last_);
+      fs->frame = frame;
+      fs->camera = pose.camera;
+      fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
+      fs->lights = pose.lights;
+      last_ = std::move(fs);
+      return last_;
+    }
+  }
+  auto fs = build_frame_state(scene_, frame, settings, options_.kd);
+  spdlog::debug("frame {}: {}", frame, fs->tree.stats().to_string());
+  last_ = std::move(fs);
+  return last_;
+}
+
+void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h, Image& out,
+                           TileRayCounts* counts) const {
+  if (w <= 0 || h <= 0 || x0 < 0 || y0 < 0 || x0 + w > state.width || y0 + h > state.height) {
+    throw Error("render_tile: tile (" + std::to_string(x0) + ", " + std::to_string(y0) + ", " +
+                std::to_string(w) + "x" + std::to_string(h) + ") is outside the " +
+                std::to_string(state.width) + "x" + std::to_string(state.height) + " frame");
+  }
+  if (out.width != w || out.height != h || (options_.aovs && out.depth.empty())) {
+    out = Image(w, h, options_.aovs, options_.aovs);
+  }
+  TileRayCounts local;
+  render_kernels(isa_).render_tile(state, x0, y0, w, h, options_.packets, out, local);
+  if (counts != nullptr) *counts += local;
+}
+
+Image Renderer::render_frame(const FrameState& state, int tile_size, ProgressBar* progress,
+                             TileRayCounts* counts) const {
+  if (tile_size <= 0) throw Error("tile size must be positive, got " + std::to_string(tile_size));
+  Image frame(state.width, state.height, options_.aovs, options_.aovs);
+  const int tiles_x = (state.width + tile_size - 1) / tile_size;
+  const int tiles_y = (state.height + tile_size - 1) / tile_size;
+  tbb::enumerable_thread_specific<TileRayCounts> thread_counts;
+  tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1), [&](const tbb::blocked_range<int>& r) {
+    Image tile;
+    TileRayCounts& mine = thread_counts.local();
+    for (int t = r.begin(); t != r.end(); ++t) {
+      const int x0 = (t % tiles_x) * tile_size, y0 = (t / tiles_x) * tile_size;
+      const int w = std::min(tile_size, state.width - x0), h = std::min(tile_size, state.height - y0);
+      render_tile(state, x0, y0, w, h, tile, &mine);
+      frame.blit(tile, x0, y0);
+      if (progress != nullptr) progress->add(static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h));
+    }
+  });
+  if (counts != nullptr) {
+    for (const TileRayCounts& c : thread_counts) *counts += c;
+  }
+  return frame;
+}
+
+}  // namespace rtc

@@ -1,0 +1,65 @@
+// The tile renderer every worker runs: Whitted shading over the packet kd-tree tracer.
+#pragma once
+
+#include <memory>
+#include <optional>
+
+#include "common/accel/kd_tree.h"
+#include "common/base/isa.h"
+#include "common/image/image.h"
+#include "common/render/frame_state.h"
+#include "common/render/render_kernels.h"
+#include "common/scene/scene.h"
+
+namespace rtc {
+
+class ProgressBar;
+
+/// How to render; none of these change a pixel except `settings` (the time/accuracy trade).
+struct RenderOptions {
+  std::optional<RenderSettings> settings;  ///< empty: the scene's own
+  std::optional<Isa> isa;                  ///< empty: best_isa()
+  bool packets = true;                     ///< false: the single-ray (N = 1) kernels
+  KdBuildOptions kd;
+  bool aovs = true;                        ///< fill Image::depth and Image::normal
+};
+
+/// Renders tiles of frames of one scene. A pixel's value is a pure function of (scene, frame,
+/// pixel, settings): not of the tile size, the thread count, the ISA, packets or the process.
+class Renderer {
+ public:
+  /// Throws rtc::Error for an unusable scene (bad camera) or an unavailable ISA.
+  Renderer(Scene scene, RenderOptions options = {});
+
+  [[nodiscard]] const Scene& scene() const { return scene_; }
+  [[nodiscard]] Isa isa() const { return isa_; }
+
+  /// Evaluates the animation at `frame`, flattens the meshes to world space and builds the
+  /// kd-tree; when no mesh moved since the last call, geometry and tree are reused. Not
+  /// thread-safe (call from one thread, then render tiles from many).
+  std::shared_ptr<const FrameState> prepare(int frame);
+
+  /// Renders pixels [x0, x0 + w) x [y0, y0 + h) of the prepared frame into `out`, which is
+  /// resized to w x h. Thread-safe; no allocation beyond `out`. Adds the rays traced to
+  /// `counts` when given.
+  void render_tile(const FrameState& state, int x0, int y0, int w, int h, Image& out,
+                   TileRayCounts* counts = nullptr) const;
+
+  /// The whole frame in square tiles of `tile_size`, in parallel (TBB); `progress` (optional)
+  /// advances by the number of pixels of each finished tile; `counts` (optional) gets the rays.
+  [[nodiscard]] Image render_frame(const FrameState& state, int tile_size = 32,
+                                   ProgressBar* progress = nullptr, TileRayCounts* counts = nullptr) const;
+
+ private:
+  Scene scene_;
+  RenderOptions options_;
+  Isa isa_;
+  std::shared_ptr<const FrameState> last_;
+};
+
+/// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests.
+[[nodiscard]] std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame,
+                                                            const RenderSettings& settings,
+                                                            const KdBuildOptions& kd);
+
+}  // namespace rtc

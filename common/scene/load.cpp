@@ -1,0 +1,103 @@
+// load_scene: scene JSON or a bare mesh file, and the automatic framing for bare meshes.
+#include "common/scene/load.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <string>
+
+#include "common/base/error.h"
+#include "common/base/log.h"
+#include "common/scene/load_internal.h"
+#include "common/scene/mesh_file.h"
+
+namespace rtc {
+
+std::uint32_t append_mesh(Scene& scene, Mesh mesh, const std::vector<Material>& materials) {
+  if (scene.materials.empty()) scene.materials.emplace_back();
+  std::vector<std::uint32_t> remap(materials.size());
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    const auto it = std::find(scene.materials.begin(), scene.materials.end(), materials[i]);
+    remap[i] = static_cast<std::uint32_t>(it - scene.materials.begin());
+    if (it == scene.materials.end()) scene.materials.push_back(materials[i]);
+  }
+  for (std::uint32_t& id : mesh.material_ids) {
+    RTC_CHECK(id < remap.size(), "mesh material id outside its file's materials");
+    id = remap[id];
+  }
+  scene.meshes.push_back(std::move(mesh));
+  return static_cast<std::uint32_t>(scene.meshes.size() - 1);
+}
+
+void place_auto_camera(Scene& scene) {
+  const Aabb box = scene.bounds();
+  glm::dvec3 center(0.0);
+  double radius = 1.0;
+  if (!box.empty()) {
+    center = glm::dvec3(box.center());
+    radius = 0.5 * glm::length(glm::dvec3(box.extent()));
+    if (!(radius > 0.0)) radius = 1.0;
+  }
+  constexpr double kVfovDeg = 45.0;
+  constexpr double kPi = 3.14159265358979323846;
+  // The bounding sphere must fit the narrower of the two fields of view.
+  const double aspect = static_cast<double>(scene.width) / static_cast<double>(scene.height);
+  const double half_v = kVfovDeg * kPi / 360.0;
+  const double half_h = std::atan(std::tan(half_v) * aspect);
+  const double half = std::min(half_v, half_h);
+  const double distance = 1.05 * radius / std::sin(half);  // 5 % margin
+  const glm::dvec3 direction = glm::normalize(glm::dvec3(0.4, 0.6, 1.0));
+  scene.camera.eye = glm::vec3(center + distance * direction);
+  scene.camera.look_at = glm::vec3(center);
+  scene.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
+  scene.camera.vfov_deg = static_cast<float>(kVfovDeg);
+}
+
+void place_default_light(Scene& scene) {
+  const glm::vec3 view = scene.camera.eye - scene.camera.look_at;
+  const float distance = glm::length(view);
+  const glm::vec3 up = glm::normalize(scene.camera.up);
+  glm::vec3 side = glm::cross(view, up);
+  const float side_length = glm::length(side);
+  side = side_length > 0.0f ? side / side_length : glm::vec3(1.0f, 0.0f, 0.0f);
+  PointLight light;
+  light.position = scene.camera.eye + 0.5f * distance * up + 0.25f * distance * side;
+  light.color = glm::vec3(1.0f);
+  scene.lights.push_back(light);
+}
+
+void frame_automatically(Scene& scene) {
+  place_auto_camera(scene);
+  if (scene.lights.empty()) place_default_light(scene);
+}
+
+Scene load_scene(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".json") return load_scene_json(path);
+
+  MeshFile file = load_mesh_file(path);
+  Scene scene;
+  scene.name = path.stem().string();
+  scene.source = path;
+  scene.materials.emplace_back();
+  append_mesh(scene, std::move(file.mesh), file.materials);
+  if (file.resolution) {
+    scene.width = file.resolution->x;
+    scene.height = file.resolution->y;
+  }
+  if (file.background) scene.background = *file.background;
+  scene.lights = std::move(file.lights);
+  if (file.camera) {
+    scene.camera = *file.camera;
+  } else {
+    place_auto_camera(scene);
+  }
+  if (scene.lights.empty()) place_default_light(scene);
+  spdlog::info("{}: {} triangles, {} materials", path.string(), scene.triangle_count(),
+               scene.materials.size());
+  return scene;
+}
+
+}  // namespace rtc

@@ -1,0 +1,124 @@
+// Scene queries and animation evaluation (double-precision interpolation, rounded once).
+#include "common/scene/scene.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+namespace rtc {
+namespace {
+
+glm::dmat4 compose(const glm::dvec3& translate, const glm::dquat& rotate, const glm::dvec3& scale) {
+  glm::dmat4 m = glm::mat4_cast(glm::normalize(rotate));
+  m[0] *= scale.x;
+  m[1] *= scale.y;
+  m[2] *= scale.z;
+  m[3] = glm::dvec4(translate, 1.0);
+  return m;
+}
+
+glm::dquat to_double(const glm::quat& q) { return glm::dquat(q.w, q.x, q.y, q.z); }
+
+/// The keys around `frame`: indices i0 <= i1 and the weight of i1 (0 when holding a key).
+template <typename Key>
+void bracket(const std::vector<Key>& keys, int frame, std::size_t& i0, std::size_t& i1, double& t) {
+  i0 = i1 = 0;
+  t = 0.0;
+  if (frame <= keys.front().frame) return;
+  if (frame >= keys.back().frame) {
+    i0 = i1 = keys.size() - 1;
+    return;
+  }
+  std::size_t k = 0;
+  while (keys[k + 1].frame <= frame) ++k;
+  i0 = k;
+  if (keys[k].frame == frame) {
+    i1 = k;
+    return;
+  }
+  i1 = k + 1;
+  t = static_cast<double>(frame - keys[k].frame) / static_cast<double>(keys[k + 1].frame - keys[k].frame);
+}
+
+glm::dvec3 mix3(const glm::vec3& a, const glm::vec3& b, double t) {
+  return glm::dvec3(a) * (1.0 - t) + glm::dvec3(b) * t;
+}
+
+}  // namespace
+
+glm::mat4 Transform::matrix() const {
+  return glm::mat4(compose(glm::dvec3(translate), to_double(rotate), glm::dvec3(scale)));
+}
+
+std::uint64_t Scene::triangle_count() const {
+  std::uint64_t n = 0;
+  for (const Mesh& mesh : meshes) n += mesh.triangles.size();
+  return n;
+}
+
+Aabb Scene::bounds() const {
+  Aabb box;
+  const FramePose pose = pose_at(*this, animation.frame_begin);
+  for (std::size_t m = 0; m < meshes.size(); ++m) {
+    const Mesh& mesh = meshes[m];
+    const glm::mat4& world = pose.world_from_object[m];
+    std::vector<bool> used(mesh.positions.size(), false);
+    for (const glm::uvec3& t : mesh.triangles) used[t.x] = used[t.y] = used[t.z] = true;
+    const bool identity = world == glm::mat4(1.0f);
+    for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+      if (!used[i]) continue;
+      box.extend(identity ? mesh.positions[i] : glm::vec3(world * glm::vec4(mesh.positions[i], 1.0f)));
+    }
+  }
+  return box;
+}
+
+FramePose pose_at(const Scene& scene, int frame) {
+  FramePose pose;
+  pose.frame = frame;
+  const Animation& anim = scene.animation;
+
+  pose.camera = scene.camera;
+  if (!anim.camera.empty()) {
+    std::size_t i0 = 0, i1 = 0;
+    double t = 0.0;
+    bracket(anim.camera, frame, i0, i1, t);
+    const Camera& a = anim.camera[i0].camera;
+    const Camera& b = anim.camera[i1].camera;
+    pose.camera.eye = glm::vec3(mix3(a.eye, b.eye, t));
+    pose.camera.look_at = glm::vec3(mix3(a.look_at, b.look_at, t));
+    pose.camera.up = glm::vec3(mix3(a.up, b.up, t));
+    pose.camera.vfov_deg = static_cast<float>(double(a.vfov_deg) * (1.0 - t) + double(b.vfov_deg) * t);
+  }
+
+  pose.world_from_object.reserve(scene.meshes.size());
+  for (const Mesh& mesh : scene.meshes) pose.world_from_object.push_back(mesh.world_from_object);
+  for (const MeshTrack& track : anim.meshes) {
+    if (track.mesh >= scene.meshes.size() || track.keys.empty()) continue;
+    std::size_t i0 = 0, i1 = 0;
+    double t = 0.0;
+    bracket(track.keys, frame, i0, i1, t);
+    const Transform& a = track.keys[i0].transform;
+    const Transform& b = track.keys[i1].transform;
+    if (i0 == i1) {
+      pose.world_from_object[track.mesh] = a.matrix();  // on or outside a key: that key, exactly
+      continue;
+    }
+    const glm::dquat rotation = glm::slerp(glm::normalize(to_double(a.rotate)),
+                                           glm::normalize(to_double(b.rotate)), t);
+    pose.world_from_object[track.mesh] =
+        glm::mat4(compose(mix3(a.translate, b.translate, t), rotation, mix3(a.scale, b.scale, t)));
+  }
+
+  pose.lights = scene.lights;
+  for (const LightTrack& track : anim.lights) {
+    if (track.light >= scene.lights.size() || track.keys.empty()) continue;
+    std::size_t i0 = 0, i1 = 0;
+    double t = 0.0;
+    bracket(track.keys, frame, i0, i1, t);
+    pose.lights[track.light].position =
+        glm::vec3(mix3(track.keys[i0].position, track.keys[i1].position, t));
+  }
+  return pose;
+}
+
+}  // namespace rtc

@@ -1,0 +1,149 @@
+// The scene model: meshes, materials, point lights, camera, image settings and animation.
+// Loaders (scene JSON, OBJ/MTL, PLY, glTF, NFF) fill it; the renderer flattens it per frame.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "common/math/aabb.h"
+#include "common/math/camera.h"
+
+namespace rtc {
+
+/// Phong material with a mirror term (Whitted). Colours are linear RGB.
+struct Material {
+  std::string name = "default";
+  glm::vec3 diffuse{0.8f};   ///< Kd
+  glm::vec3 specular{0.0f};  ///< Ks: highlight colour, and the mirror weight when reflective
+  float shininess = 32.0f;   ///< Ns, Phong exponent (NFF values up to 1e5 mean "no highlight")
+  glm::vec3 emission{0.0f};  ///< Ke, added unshadowed
+  bool reflective = false;   ///< MTL illum 3 / NFF Ks > 0: mirror ray with weight `specular`
+  float opacity = 1.0f;      ///< MTL d; recorded, the tracer treats every surface as opaque
+
+  bool operator==(const Material&) const = default;
+};
+
+/// A point light without distance falloff (NFF / SPD convention).
+struct PointLight {
+  glm::vec3 position{0.0f};
+  glm::vec3 color{1.0f};
+
+  bool operator==(const PointLight&) const = default;
+};
+
+/// Rigid transform (plus uniform or per-axis scale), applied scale, then rotate, then translate.
+struct Transform {
+  glm::vec3 translate{0.0f};
+  glm::quat rotate{1.0f, 0.0f, 0.0f, 0.0f};  ///< w, x, y, z
+  glm::vec3 scale{1.0f};
+
+  [[nodiscard]] glm::mat4 matrix() const;
+  bool operator==(const Transform&) const = default;
+};
+
+/// A triangle mesh in object space. Triangles reference `positions`; degenerate triangles
+/// are already dropped by the loader (counted in `dropped_degenerate`).
+struct Mesh {
+  std::string name;
+  std::string source;                       ///< file it came from, for messages
+  std::vector<glm::vec3> positions;
+  /// Empty, or one per position (smooth shading, unit length). A vertex without a normal in
+  /// the file (e.g. an OBJ polygon next to normal-carrying patches) has (0, 0, 0): use the
+  /// geometric normal there.
+  std::vector<glm::vec3> normals;
+  std::vector<glm::uvec3> triangles;        ///< indices into positions
+  std::vector<std::uint32_t> material_ids;  ///< one per triangle, index into Scene::materials
+  /// One per triangle: its index in the input file's order after fan triangulation, counting
+  /// the dropped degenerate ones (what `rtc-bench --dump` writes and the oracle compares).
+  std::vector<std::uint32_t> source_index;
+  std::uint64_t dropped_degenerate = 0;
+  /// Static placement in the world (object space -> world space); animation tracks for this
+  /// mesh replace it where they have keys.
+  glm::mat4 world_from_object{1.0f};
+};
+
+/// Camera keyframe: the camera at `frame`; frames between keys interpolate linearly
+/// (eye, look_at, up, vfov), frames outside the keyed range hold the nearest key.
+struct CameraKey {
+  int frame = 0;
+  Camera camera;
+};
+
+/// Rigid-transform keyframe for one mesh; interpolation as CameraKey (rotation by slerp).
+struct TransformKey {
+  int frame = 0;
+  Transform transform;
+};
+
+/// Light position keyframe.
+struct LightKey {
+  int frame = 0;
+  glm::vec3 position{0.0f};
+};
+
+struct MeshTrack {
+  std::uint32_t mesh = 0;  ///< index into Scene::meshes
+  std::vector<TransformKey> keys;  ///< sorted by frame, at least one
+};
+
+struct LightTrack {
+  std::uint32_t light = 0;  ///< index into Scene::lights
+  std::vector<LightKey> keys;  ///< sorted by frame, at least one
+};
+
+/// Frames [frame_begin, frame_end] (inclusive) with optional camera, mesh and light tracks.
+/// A static-camera sequence where only some meshes move is: no camera keys, some mesh tracks.
+struct Animation {
+  int frame_begin = 0;
+  int frame_end = 0;
+  std::vector<CameraKey> camera;  ///< empty: Scene::camera for every frame
+  std::vector<MeshTrack> meshes;
+  std::vector<LightTrack> lights;
+};
+
+/// Settings that trade time for accuracy; the scene file may set them, the CLI may override.
+struct RenderSettings {
+  int max_depth = 5;          ///< reflection bounces after the primary hit
+  float min_weight = 0.01f;   ///< ray-weight cutoff: reflections weaker than this are not traced
+  int spp = 1;                ///< samples per pixel (deterministic pattern)
+};
+
+/// A whole scene. Value type; copying copies the meshes.
+struct Scene {
+  std::string name = "scene";
+  std::filesystem::path source;  ///< the file it was loaded from (empty when built in)
+  std::vector<Mesh> meshes;
+  std::vector<Material> materials;  ///< at least one; material 0 is the default
+  std::vector<PointLight> lights;
+  Camera camera;
+  int width = 512;
+  int height = 512;
+  glm::vec3 background{0.0f};
+  glm::vec3 ambient{0.1f};  ///< ambient light, multiplied by the diffuse colour
+  RenderSettings settings;
+  Animation animation;
+
+  /// Number of triangles over all meshes (after degenerate dropping).
+  [[nodiscard]] std::uint64_t triangle_count() const;
+  /// World-space bounds of the static placement (frame_begin).
+  [[nodiscard]] Aabb bounds() const;
+};
+
+/// The scene as it stands at one frame: transforms, camera and lights evaluated.
+struct FramePose {
+  int frame = 0;
+  Camera camera;
+  std::vector<glm::mat4> world_from_object;  ///< one per mesh
+  std::vector<PointLight> lights;
+};
+
+/// Evaluates the animation at `frame` (deterministic; double-precision interpolation).
+[[nodiscard]] FramePose pose_at(const Scene& scene, int frame);
+
+}  // namespace rtc

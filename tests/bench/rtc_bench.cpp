@@ -1,0 +1,415 @@
+// rtc-bench: kd-tree build time, primary and shadow ray throughput and full Whitted frame time
+// of rtc's tracer on one scene, optionally beside Embree 3 tracing the same rays in the same
+// run (--compare-embree), with per-pixel agreement. Speed is reported, never asserted.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+
+#include "common/accel/trace.h"
+#include "common/base/error.h"
+#include "common/base/isa.h"
+#include "common/base/log.h"
+#include "common/base/timer.h"
+#include "common/math/ray_offset.h"
+#include "common/render/renderer.h"
+#include "common/scene/load.h"
+#include "tests/support/embree_oracle.h"
+#include "tests/support/hit_compare.h"
+
+namespace {
+
+using rtc::RayHit;
+using rtc::RayQuery;
+using rtc::test::EmbreeMode;
+using rtc::test::EmbreeScene;
+
+constexpr int kTile = 16;  // rays are handed to threads a 16x16 tile at a time
+
+/// A ray stream in packet order: every `width` consecutive rays are one block of pixels;
+/// `pixel` is -1 for padding lanes (copies of a real ray of the block, not counted).
+struct RayStream {
+  int width = 1;
+  std::vector<RayQuery> rays;
+  std::vector<std::int64_t> pixel;
+  std::vector<std::size_t> chunk_begin;  // one chunk per tile, for threads
+  std::uint64_t real = 0;
+};
+
+void block_shape(int width, int& bw, int& bh) {
+  switch (width) {
+    case 4: bw = 2; bh = 2; return;
+    case 8: bw = 4; bh = 2; return;
+    case 16: bw = 4; bh = 4; return;
+    default: bw = 1; bh = 1; return;
+  }
+}
+
+RayStream primary_stream(const rtc::FrameState& fs, int width) {
+  RayStream s;
+  s.width = width;
+  int bw = 1, bh = 1;
+  block_shape(width, bw, bh);
+  for (int ty = 0; ty < fs.height; ty += kTile) {
+    for (int tx = 0; tx < fs.width; tx += kTile) {
+      s.chunk_begin.push_back(s.rays.size());
+      for (int by = ty; by < std::min(ty + kTile, fs.height); by += bh) {
+        for (int bx = tx; bx < std::min(tx + kTile, fs.width); bx += bw) {
+          const std::size_t first = s.rays.size();
+          for (int i = 0; i < width; ++i) {
+            const int x = bx + i % bw, y = by + i / bw;
+            const bool real = x < std::min(tx + kTile, fs.width) && y < std::min(ty + kTile, fs.height);
+            if (real) {
+              const rtc::Ray r = fs.camera_rays.ray(x, y);
+              s.rays.push_back(RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
+              s.pixel.push_back(static_cast<std::int64_t>(y) * fs.width + x);
+              ++s.real;
+            } else {
+              s.rays.push_back(s.rays[first]);
+              s.pixel.push_back(-1);
+            }
+          }
+        }
+      }
+    }
+  }
+  s.chunk_begin.push_back(s.rays.size());
+  return s;
+}
+
+// Shadow rays from our primary hits to every light, as the renderer makes them: hit point from
+// the barycentrics, offset along the geometric normal towards the viewer, t in (0, 1).
+RayStream shadow_stream(const rtc::FrameState& fs, const RayStream& primary, const std::vector<RayHit>& hits) {
+  RayStream s;
+  s.width = primary.width;
+  const int w = primary.width;
+  for (std::size_t c = 0; c + 1 < primary.chunk_begin.size(); ++c) {
+    s.chunk_begin.push_back(s.rays.size());
+    for (const rtc::PointLight& light : fs.lights) {
+      for (std::size_t b = primary.chunk_begin[c]; b < primary.chunk_begin[c + 1]; b += static_cast<std::size_t>(w)) {
+        RayQuery lane[16];
+        bool want[16] = {};
+        int first_real = -1;
+        for (int i = 0; i < w; ++i) {
+          const std::size_t k = b + static_cast<std::size_t>(i);
+          if (primary.pixel[k] < 0 || hits[k].prim == rtc::kNoHit) continue;
+          const glm::uvec3 t = fs.triangles[hits[k].prim];
+          const glm::vec3 a = fs.positions[t.x], bb = fs.positions[t.y], cc = fs.positions[t.z];
+          const float alpha = (1.0f - hits[k].beta) - hits[k].gamma;
+          const glm::vec3 p = (a * alpha + bb * hits[k].beta) + cc * hits[k].gamma;
+          glm::vec3 ng = glm::cross(bb - a, cc - a);
+          const float len = glm::length(ng);
+          if (!(len > 0.0f)) continue;
+          ng /= len;
+          if (glm::dot(ng, primary.rays[k].dir) > 0.0f) ng = -ng;
+          const glm::vec3 o = rtc::offset_ray_origin(p, ng, rtc::vertex_magnitude(a, bb, cc));
+          const glm::vec3 d = light.position - o;
+          if (!(glm::dot(d, ng) > 0.0f)) continue;
+          lane[i] = RayQuery{o, 0.0f, d, 1.0f};
+          want[i] = true;
+          if (first_real < 0) first_real = i;
+        }
+        if (first_real < 0) continue;
+        for (int i = 0; i < w; ++i) {
+          s.rays.push_back(want[i] ? lane[i] : lane[first_real]);
+          s.pixel.push_back(want[i] ? 1 : -1);
+          s.real += want[i] ? 1 : 0;
+        }
+      }
+    }
+  }
+  s.chunk_begin.push_back(s.rays.size());
+  return s;
+}
+
+template <typename Fn>
+double time_median_ms(int reps, Fn&& fn) {
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) {
+    rtc::Timer t;
+    fn();
+    ms.push_back(t.elapsed_ms());
+  }
+  std::sort(ms.begin(), ms.end());
+  return ms[ms.size() / 2];
+}
+
+template <typename Fn>
+void for_chunks(const RayStream& s, Fn&& fn) {
+  tbb::parallel_for(std::size_t{0}, s.chunk_begin.size() - 1, [&](std::size_t c) {
+    fn(s.chunk_begin[c], s.chunk_begin[c + 1] - s.chunk_begin[c]);
+  });
+}
+
+std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {
+  std::vector<RayHit> out(pixels);
+  for (std::size_t i = 0; i < s.rays.size(); ++i) {
+    if (s.pixel[i] >= 0) out[static_cast<std::size_t>(s.pixel[i])] = hits[i];
+  }
+  return out;
+}
+
+std::vector<RayQuery> rays_by_pixel(const RayStream& s, std::size_t pixels) {
+  std::vector<RayQuery> out(pixels);
+  for (std::size_t i = 0; i < s.rays.size(); ++i) {
+    if (s.pixel[i] >= 0) out[static_cast<std::size_t>(s.pixel[i])] = s.rays[i];
+  }
+  return out;
+}
+
+void write_dump(const std::string& prefix, const rtc::FrameState& fs, const std::vector<RayHit>& hits) {
+  std::vector<float> t(hits.size());
+  std::vector<std::uint32_t> prim(hits.size());
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    const bool hit = hits[i].prim != rtc::kNoHit;
+    t[i] = hit ? hits[i].t : std::numeric_limits<float>::infinity();
+    prim[i] = hit ? fs.source_index[hits[i].prim] : 0xFFFFFFFFu;
+  }
+  auto write = [](const std::string& path, const void* data, std::size_t bytes) {
+    std::ofstream f(path, std::ios::binary);
+    f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
+    if (!f) throw rtc::Error(path + ": cannot write the dump");
+  };
+  write(prefix + ".t.f32", t.data(), t.size() * sizeof(float));
+  write(prefix + ".prim.u32", prim.data(), prim.size() * sizeof(std::uint32_t));
+}
+
+const EmbreeMode kEmbreeModes[] = {EmbreeMode::Single, EmbreeMode::Packet4, EmbreeMode::Packet8,
+                                   EmbreeMode::Packet16};
+
+int run(int argc, char** argv) {
+  CLI::App app{"rtc-bench: rtc tracer throughput on one scene, optionally beside Embree"};
+  std::string scene_path;
+  int threads = 0, reps = 5;
+  std::vector<std::string> modes;
+  std::string isa_text, dump_prefix, log_level = "warn";
+  bool json = false, compare = false;
+  app.add_option("scene", scene_path, "a view.json / scene file / mesh, or a folder holding view.json")->required();
+  app.add_option("--threads", threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--reps", reps, "repetitions; figures are medians")->check(CLI::Range(1, 1000));
+  app.add_option("--mode", modes, "primary, shadow, full (repeatable; default: all three)")
+      ->check(CLI::IsMember({"primary", "shadow", "full"}));
+  app.add_option("--isa", isa_text, "kernel ISA (default: best available)");
+  app.add_flag("--json", json, "one JSON object per line per mode instead of the table");
+  app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
+  app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+  CLI11_PARSE(app, argc, argv);
+  rtc::init_logging(log_level);
+  if (modes.empty()) modes = {"primary", "shadow", "full"};
+
+  std::filesystem::path path(scene_path);
+  if (std::filesystem::is_directory(path)) path /= "view.json";
+  const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(thread_count));
+  const rtc::Isa isa = isa_text.empty() ? rtc::best_isa() : rtc::parse_isa(isa_text);
+  const rtc::TraceKernels& kernels = rtc::trace_kernels(isa);
+
+  rtc::Timer load_timer;
+  rtc::Scene scene = rtc::load_scene(path);
+  const double load_ms = load_timer.elapsed_ms();
+  const std::string name = scene.name;
+
+  // Build time: median over the reps, like every other figure.
+  std::shared_ptr<rtc::FrameState> fs;
+  const double build_ms = time_median_ms(reps, [&] {
+    fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, rtc::KdBuildOptions{});
+  });
+  const rtc::KdBuildStats& kd = fs->tree.stats();
+  const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
+
+  std::unique_ptr<EmbreeScene> embree;
+  double embree_build_ms = 0.0, embree_build_hq_ms = 0.0;
+  if (compare) {
+    embree_build_ms = time_median_ms(reps, [&] { embree = std::make_unique<EmbreeScene>(fs->positions, fs->triangles); });
+    embree_build_hq_ms = time_median_ms(std::min(reps, 3), [&] {
+      EmbreeScene hq(fs->positions, fs->triangles, false, true);
+    });
+  }
+
+  nlohmann::json base = {{"scene", name},
+                         {"threads", thread_count},
+                         {"isa", std::string(rtc::isa_name(isa))},
+                         {"width", fs->width},
+                         {"height", fs->height},
+                         {"triangles", kd.triangles},
+                         {"load_ms", load_ms},
+                         {"build_ms", build_ms},
+                         {"kd_nodes", kd.nodes},
+                         {"kd_leaves", kd.leaves},
+                         {"kd_max_depth", kd.max_depth},
+                         {"kd_tris_per_leaf", kd.mean_tris_per_leaf},
+                         {"kd_sah_cost", kd.sah_cost},
+                         {"reps", reps}};
+  if (compare) {
+    base["embree_build_ms"] = embree_build_ms;
+    base["embree_build_hq_ms"] = embree_build_hq_ms;
+  }
+  if (!json) {
+    std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s; load %.0f ms\n", name.c_str(),
+                static_cast<unsigned long long>(kd.triangles), fs->width, fs->height, thread_count,
+                std::string(rtc::isa_name(isa)).c_str(), load_ms);
+    std::printf("  build: rtc kd-tree %.1f ms (%s)\n", build_ms, kd.to_string().c_str());
+    if (compare) {
+      std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality)\n", embree_build_ms,
+                  embree_build_hq_ms);
+    }
+  }
+
+  // Primary rays are needed by the shadow mode too.
+  const RayStream primary = primary_stream(*fs, kernels.packet_width);
+  std::vector<RayHit> hits(primary.rays.size());
+  auto trace_primary = [&](bool packets) {
+    for_chunks(primary, [&](std::size_t first, std::size_t n) {
+      kernels.intersect(fs->tree, primary.rays.data() + first, hits.data() + first, n, packets);
+      rtc::refine_hit_distances(fs->positions, fs->triangles, primary.rays.data() + first, hits.data() + first, n);
+    });
+  };
+  trace_primary(true);
+  const std::vector<RayHit> our_pixels = by_pixel(primary, hits, pixels);
+  if (!dump_prefix.empty()) write_dump(dump_prefix, *fs, our_pixels);
+
+  for (const std::string& mode : modes) {
+    nlohmann::json out = base;
+    out["mode"] = mode;
+    if (mode == "primary" || mode == "shadow") {
+      const bool shadow = mode == "shadow";
+      const RayStream shadows = shadow ? shadow_stream(*fs, primary, hits) : RayStream{};
+      const RayStream& s = shadow ? shadows : primary;
+      std::vector<std::uint8_t> occ(s.rays.size());
+      std::vector<RayHit> scratch(s.rays.size());
+      auto ours = [&](bool packets) {
+        for_chunks(s, [&](std::size_t first, std::size_t n) {
+          if (shadow) {
+            kernels.occluded(fs->tree, s.rays.data() + first, occ.data() + first, n, packets);
+          } else {
+            // rtc reports refined distances, so their cost is part of the figure.
+            kernels.intersect(fs->tree, s.rays.data() + first, scratch.data() + first, n, packets);
+            rtc::refine_hit_distances(fs->positions, fs->triangles, s.rays.data() + first, scratch.data() + first, n);
+          }
+        });
+      };
+      const double ms_packet = time_median_ms(reps, [&] { ours(true); });
+      const double ms_single = time_median_ms(reps, [&] { ours(false); });
+      const double rays = static_cast<double>(s.real);
+      out["rays"] = s.real;
+      out["frame_ms"] = ms_packet;
+      out["mrays_per_s"] = rays / ms_packet / 1e3;
+      out["mrays_per_s_single"] = rays / ms_single / 1e3;
+      if (!json) {
+        std::printf("  %-7s rtc %d-wide packets: %8.2f M rays/s (%.1f ms for %llu rays); single rays: %.2f M rays/s\n",
+                    mode.c_str(), kernels.packet_width, rays / ms_packet / 1e3, ms_packet,
+                    static_cast<unsigned long long>(s.real), rays / ms_single / 1e3);
+      }
+      if (compare) {
+        nlohmann::json emb = nlohmann::json::object();
+        double best = 0.0;
+        std::vector<std::uint8_t> our_occ = occ;
+        for (EmbreeMode em : kEmbreeModes) {
+          if (!embree->supports(em)) continue;
+          const int w = static_cast<int>(em);
+          RayStream es = shadow ? RayStream{} : primary_stream(*fs, w);
+          if (shadow) {
+            // Embree gets the same shadow rays; packets are consecutive rays of one light.
+            es = shadows;
+            es.width = w;
+          }
+          std::vector<RayHit> eh(es.rays.size());
+          std::vector<std::uint8_t> eocc(es.rays.size());
+          const double ms = time_median_ms(reps, [&] {
+            tbb::parallel_for(std::size_t{0}, es.chunk_begin.size() - 1, [&](std::size_t c) {
+              const std::size_t first = es.chunk_begin[c], n = es.chunk_begin[c + 1] - first;
+              if (shadow) {
+                embree->occluded(es.rays.data() + first, eocc.data() + first, n, em);
+              } else {
+                embree->intersect(es.rays.data() + first, eh.data() + first, n, em);
+              }
+            });
+          });
+          const double mrays = rays / ms / 1e3;
+          best = std::max(best, mrays);
+          nlohmann::json m = {{"mrays_per_s", mrays}, {"frame_ms", ms}};
+          if (shadow) {
+            std::uint64_t agree = 0, n_real = 0;
+            for (std::size_t i = 0; i < es.rays.size(); ++i) {
+              if (es.pixel[i] < 0) continue;
+              ++n_real;
+              agree += (eocc[i] != 0) == (our_occ[i] != 0);
+            }
+            m["occlusion_agreement"] = n_real ? static_cast<double>(agree) / static_cast<double>(n_real) : 1.0;
+          } else {
+            const std::vector<RayHit> theirs = by_pixel(es, eh, pixels);
+            const std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
+            const rtc::test::HitComparison c =
+                rtc::test::compare_hits(fs->positions, fs->triangles, pr, our_pixels, theirs);
+            m["hit_miss_agreement"] = c.hit_miss_agreement();
+            m["same_triangle"] = c.same_prim;
+            m["max_rel_dt"] = c.max_rel_t_same_prim;
+            m["ties"] = c.ties;
+            m["unexplained"] = c.bad_ties + c.same_prim_t_bad;
+            if (!json && em == EmbreeMode::Single) std::printf("          agreement: %s\n", c.summary().c_str());
+          }
+          emb[EmbreeScene::mode_name(em)] = m;
+          if (!json) {
+            std::printf("          %-9s: %8.2f M rays/s (%.1f ms)%s\n", EmbreeScene::mode_name(em).c_str(), mrays, ms,
+                        shadow ? fmt::format(", occlusion agreement {:.4f}%",
+                                             100.0 * m["occlusion_agreement"].get<double>()).c_str()
+                               : "");
+          }
+        }
+        out["embree"] = emb;
+        out["embree_best_mrays_per_s"] = best;
+        out["ratio_vs_embree_best"] = (rays / ms_packet / 1e3) / best;
+        if (!json) std::printf("          rtc / best Embree: %.2fx\n", (rays / ms_packet / 1e3) / best);
+      }
+    } else {
+      rtc::RenderOptions ro;
+      ro.isa = isa;
+      rtc::Renderer renderer(scene, ro);
+      rtc::TileRayCounts counts;
+      const double ms = time_median_ms(reps, [&] {
+        counts = rtc::TileRayCounts{};
+        (void)renderer.render_frame(*fs, 32, nullptr, &counts);
+      });
+      out["rays"] = counts.total();
+      out["primary_rays"] = counts.primary;
+      out["shadow_rays"] = counts.shadow;
+      out["reflection_rays"] = counts.reflection;
+      out["frame_ms"] = ms;
+      out["mrays_per_s"] = static_cast<double>(counts.total()) / ms / 1e3;
+      out["max_depth"] = fs->settings.max_depth;
+      if (!json) {
+        std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu shadow, %llu reflection; "
+                    "depth %d)\n",
+                    ms, static_cast<double>(counts.total()) / ms / 1e3,
+                    static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
+                    static_cast<unsigned long long>(counts.reflection), fs->settings.max_depth);
+        if (compare) std::printf("          (an Embree-based renderer with the same shading comes with part 2)\n");
+      }
+    }
+    if (json) std::printf("%s\n", out.dump().c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rtc-bench: error: %s\n", e.what());
+    return 1;
+  }
+}

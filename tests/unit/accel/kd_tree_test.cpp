@@ -1,0 +1,316 @@
+// kd-tree build invariants, the triangle test, and traversal against a brute-force
+// double-precision reference, at packet width 4 and 1 (same bits).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "common/accel/kd_tree.h"
+#include "common/accel/trace.h"
+#include "tests/support/hit_compare.h"
+
+namespace rtc {
+namespace {
+
+struct Soup {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::uvec3> triangles;
+};
+
+Soup random_soup(std::uint32_t seed, int count, float size) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-1.0f, 1.0f), off(-size, size);
+  Soup s;
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 c(pos(rng), pos(rng), pos(rng));
+    for (int k = 0; k < 3; ++k) s.positions.push_back(c + glm::vec3(off(rng), off(rng), off(rng)));
+    const auto b = static_cast<unsigned>(3 * i);
+    s.triangles.emplace_back(b, b + 1, b + 2);
+  }
+  return s;
+}
+
+// A closed UV sphere plus an axis-aligned grid floor: shared edges, planar triangles lying in
+// split planes, and axis-parallel faces.
+Soup sphere_and_grid(int seg) {
+  Soup s;
+  const float pi = 3.14159265f;
+  for (int i = 0; i <= seg; ++i) {
+    for (int j = 0; j < 2 * seg; ++j) {
+      const float th = pi * static_cast<float>(i) / static_cast<float>(seg);
+      const float ph = pi * static_cast<float>(j) / static_cast<float>(seg);
+      s.positions.emplace_back(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph));
+    }
+  }
+  const auto ring = static_cast<unsigned>(2 * seg);
+  for (int i = 0; i < seg; ++i) {
+    for (int j = 0; j < 2 * seg; ++j) {
+      const unsigned a = static_cast<unsigned>(i) * ring + static_cast<unsigned>(j);
+      const unsigned b = static_cast<unsigned>(i) * ring + (static_cast<unsigned>(j) + 1) % ring;
+      const unsigned c = a + ring, d = b + ring;
+      if (i > 0) s.triangles.emplace_back(a, b, c);
+      if (i < seg - 1) s.triangles.emplace_back(b, d, c);
+    }
+  }
+  const auto base = static_cast<unsigned>(s.positions.size());
+  const int n = 8;
+  for (int i = 0; i <= n; ++i) {
+    for (int j = 0; j <= n; ++j) {
+      s.positions.emplace_back(-2.0f + 0.5f * static_cast<float>(i), -1.0f, -2.0f + 0.5f * static_cast<float>(j));
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const unsigned a = base + static_cast<unsigned>(i * (n + 1) + j), b = a + 1,
+                     c = a + static_cast<unsigned>(n + 1), d = c + 1;
+      s.triangles.emplace_back(a, b, c);
+      s.triangles.emplace_back(b, d, c);
+    }
+  }
+  return s;
+}
+
+Aabb tri_box(const Soup& s, std::uint32_t t) {
+  Aabb b;
+  for (int k = 0; k < 3; ++k) b.extend(s.positions[s.triangles[t][k]]);
+  return b;
+}
+
+bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
+  const std::uint32_t* r = tree.prim_refs().data() + leaf.prim_offset();
+  return std::find(r, r + leaf.count, tri) != r + leaf.count;
+}
+
+// Every triangle is referenced by every leaf its bounds overlap with positive extent along
+// the split; a triangle lying in a split plane by at least one side.
+bool reachable(const KdTree& tree, std::uint32_t index, const Aabb& b, std::uint32_t tri) {
+  const KdNode& node = tree.nodes()[index];
+  if (node.is_leaf()) return leaf_has(tree, node, tri);
+  const int a = node.axis();
+  const float s = node.split;
+  if (b.lo[a] == s && b.hi[a] == s) {
+    return reachable(tree, node.left(), b, tri) || reachable(tree, node.left() + 1, b, tri);
+  }
+  bool ok = true;
+  if (b.lo[a] < s) ok = ok && reachable(tree, node.left(), b, tri);
+  if (b.hi[a] > s) ok = ok && reachable(tree, node.left() + 1, b, tri);
+  return ok;
+}
+
+TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
+  for (const Soup& s : {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f)}) {
+    const KdTree tree = KdTree::build(s.positions, s.triangles);
+    ASSERT_FALSE(tree.empty());
+    EXPECT_GT(tree.stats().leaves, 1u);
+    for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
+      ASSERT_TRUE(reachable(tree, 0, tri_box(s, t), t)) << "triangle " << t << " unreachable";
+    }
+  }
+}
+
+TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
+  const Soup s = sphere_and_grid(16);
+  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  for (const KdNode& n : tree.nodes()) {
+    if (n.is_leaf()) {
+      EXPECT_LE(n.prim_offset() + n.count, tree.prim_refs().size());
+    } else {
+      EXPECT_LT(n.left() + 1, tree.nodes().size());
+      EXPECT_LT(n.axis(), 3);
+    }
+  }
+  EXPECT_EQ(tree.stats().nodes, tree.nodes().size());
+  EXPECT_GT(tree.stats().sah_cost, 0.0);
+}
+
+TEST(KdTree, BuildIsIndependentOfThreadCount) {
+  const Soup s = random_soup(3, 20000, 0.02f);
+  KdBuildOptions one;
+  one.threads = 1;
+  KdBuildOptions two;
+  two.threads = 2;
+  const KdTree a = KdTree::build(s.positions, s.triangles, one);
+  const KdTree b = KdTree::build(s.positions, s.triangles, two);
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  ASSERT_EQ(a.prim_refs(), b.prim_refs());
+  for (std::size_t i = 0; i < a.nodes().size(); ++i) {
+    ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits);
+    ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count);
+  }
+}
+
+TEST(KdTree, DegenerateTrianglesAreSkipped) {
+  Soup s;
+  s.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}};
+  s.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 0, 2}};  // the last two have zero area
+  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  EXPECT_EQ(tree.stats().degenerate, 2u);
+  EXPECT_EQ(tree.tri_accel()[1].k, 3u);
+}
+
+TEST(KdTree, EmptyInputGivesATreeEveryRayMisses) {
+  const std::vector<glm::vec3> p;
+  const std::vector<glm::uvec3> t;
+  const KdTree tree = KdTree::build(p, t);
+  EXPECT_TRUE(tree.empty());
+  RayQuery q;
+  RayHit h;
+  trace_kernels().intersect(tree, &q, &h, 1, true);
+  EXPECT_EQ(h.prim, kNoHit);
+}
+
+TEST(TriAccel, IsFortyEightBytesAndGivesBarycentrics) {
+  static_assert(sizeof(TriAccel) == 48);
+  std::vector<glm::vec3> p = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
+  std::vector<glm::uvec3> t = {{0, 1, 2}};
+  const KdTree tree = KdTree::build(p, t);
+  RayQuery q;
+  q.org = {0.5f, 0.25f, 3.0f};
+  q.dir = {0.0f, 0.0f, -1.0f};
+  RayHit h;
+  trace_kernels().intersect(tree, &q, &h, 1, false);
+  ASSERT_EQ(h.prim, 0u);
+  EXPECT_FLOAT_EQ(h.t, 3.0f);
+  EXPECT_FLOAT_EQ(h.beta, 0.25f);   // weight of vertex 1 = x / 2
+  EXPECT_FLOAT_EQ(h.gamma, 0.125f); // weight of vertex 2 = y / 2
+}
+
+std::vector<RayQuery> random_rays(std::uint32_t seed, std::size_t count, bool coherent) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<RayQuery> rays(count);
+  const glm::vec3 eye(0.3f, 0.2f, 4.0f);
+  for (std::size_t i = 0; i < count; ++i) {
+    RayQuery& r = rays[i];
+    if (coherent) {
+      r.org = eye;
+      r.dir = glm::normalize(glm::vec3(u(rng) * 0.6f, u(rng) * 0.6f, -1.0f));
+    } else {
+      r.org = glm::vec3(u(rng), u(rng), u(rng)) * 3.0f;
+      r.dir = glm::vec3(u(rng), u(rng), u(rng));
+    }
+  }
+  return rays;
+}
+
+// Brute force in double: the nearest triangle each ray hits (NaN-safe, t > 0).
+std::vector<RayHit> brute_force(const Soup& s, const std::vector<RayQuery>& rays) {
+  std::vector<RayHit> out(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
+      double b = 0;
+      const glm::uvec3 tri = s.triangles[t];
+      const double x = test::ray_triangle_t(rays[i], s.positions[tri.x], s.positions[tri.y], s.positions[tri.z], &b);
+      if (b >= 0.0 && x > 0.0 && x < best) {
+        best = x;
+        out[i] = RayHit{static_cast<float>(x), 0, 0, t};
+      }
+    }
+    if (out[i].prim == kNoHit) out[i].t = rays[i].t_max;
+  }
+  return out;
+}
+
+TEST(KdTraversal, AgreesWithBruteForceDouble) {
+  for (bool coherent : {true, false}) {
+    for (const Soup& s : {random_soup(5, 2000, 0.1f), sphere_and_grid(20)}) {
+      const std::vector<RayQuery> rays = random_rays(coherent ? 17u : 19u, 20000, coherent);
+      const KdTree tree = KdTree::build(s.positions, s.triangles);
+      std::vector<RayHit> hits(rays.size());
+      trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), true);
+      const std::vector<RayHit> ref = brute_force(s, rays);
+      // Origins inside the scene make t small next to the coordinates, so float's error in t
+      // is absolute (a few ulps of the scene extent, here 3), not relative.
+      const test::HitComparison c =
+          test::compare_hits(s.positions, s.triangles, rays, hits, ref, 1e-5, 1e-3, 3e-6);
+      SCOPED_TRACE(c.summary());
+      for (std::size_t i : c.examples) ADD_FAILURE() << test::describe_ray(rays[i]);
+      // A ray grazing a shared edge may slip past in float (Wald's test is not watertight);
+      // such misses are rare and must all be edge cases: no triangle interior is ever missed.
+      EXPECT_EQ(c.hit_miss_disagree - c.hit_miss_on_edge, 0u);
+      EXPECT_LE(c.hit_miss_disagree, rays.size() / 10000);
+      EXPECT_EQ(c.same_prim_t_bad, 0u);
+      EXPECT_EQ(c.bad_ties, 0u);
+    }
+  }
+}
+
+TEST(KdTraversal, PacketsAndSingleRaysGiveTheSameBits) {
+  const Soup s = sphere_and_grid(32);
+  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  for (bool coherent : {true, false}) {
+    const std::vector<RayQuery> rays = random_rays(23, 40000, coherent);
+    std::vector<RayHit> a(rays.size()), b(rays.size());
+    std::vector<std::uint8_t> oa(rays.size()), ob(rays.size());
+    trace_kernels().intersect(tree, rays.data(), a.data(), rays.size(), true);
+    trace_kernels().intersect(tree, rays.data(), b.data(), rays.size(), false);
+    trace_kernels().occluded(tree, rays.data(), oa.data(), rays.size(), true);
+    trace_kernels().occluded(tree, rays.data(), ob.data(), rays.size(), false);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(std::memcmp(&a[i], &b[i], sizeof(RayHit)), 0) << test::describe_ray(rays[i]);
+      ASSERT_EQ(oa[i], ob[i]) << test::describe_ray(rays[i]);
+      ASSERT_EQ(oa[i] != 0, a[i].prim != kNoHit) << test::describe_ray(rays[i]);
+    }
+  }
+}
+
+TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {
+  // Axis-aligned boxes of triangles; rays along the axes (inverse directions +-inf), starting
+  // exactly on the planes the grid puts splits on, with +0 and -0 components.
+  const Soup s = sphere_and_grid(16);
+  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  std::vector<RayQuery> rays;
+  for (const KdNode& n : tree.nodes()) {
+    if (n.is_leaf()) continue;
+    for (float sgn : {1.0f, -1.0f}) {
+      for (float zero : {0.0f, -0.0f}) {
+        RayQuery r;
+        r.org = glm::vec3(0.1f, 0.05f, 0.2f);
+        r.org[n.axis()] = n.split;
+        r.dir = glm::vec3(zero);
+        r.dir[(n.axis() + 1) % 3] = sgn;
+        rays.push_back(r);
+        r.dir = glm::vec3(zero);
+        r.dir[n.axis()] = sgn;
+        rays.push_back(r);
+      }
+    }
+  }
+  std::vector<RayHit> hits(rays.size());
+  trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), true);
+  const std::vector<RayHit> ref = brute_force(s, rays);
+  const test::HitComparison c = test::compare_hits(s.positions, s.triangles, rays, hits, ref, 1e-5);
+  for (std::size_t i : c.examples) ADD_FAILURE() << test::describe_ray(rays[i]);
+  // These rays run exactly along rings of sphere vertices (the split planes sit on them), so
+  // many graze shared edges, where Wald's test may let a ray through (issue: watertightness).
+  // Every interior hit must be found, and ties must be real.
+  EXPECT_EQ(c.hit_miss_disagree - c.hit_miss_on_edge, 0u) << c.summary();
+  EXPECT_EQ(c.bad_ties, 0u) << c.summary();
+  std::printf("axis-parallel rays on split planes: %s\n", c.summary().c_str());
+}
+
+TEST(KdTraversal, OcclusionRespectsTheInterval) {
+  std::vector<glm::vec3> p = {{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}};
+  std::vector<glm::uvec3> t = {{0, 1, 2}};
+  const KdTree tree = KdTree::build(p, t);
+  RayQuery q;
+  q.org = {0, 0, 2};
+  q.dir = {0, 0, -1};
+  std::uint8_t occ = 0;
+  q.t_max = 1.5f;
+  trace_kernels().occluded(tree, &q, &occ, 1, true);
+  EXPECT_EQ(occ, 0);
+  q.t_max = 2.5f;
+  trace_kernels().occluded(tree, &q, &occ, 1, true);
+  EXPECT_EQ(occ, 1);
+  q.t_min = 2.1f;
+  trace_kernels().occluded(tree, &q, &occ, 1, true);
+  EXPECT_EQ(occ, 0);
+}
+
+}  // namespace
+}  // namespace rtc

@@ -1,0 +1,676 @@
+// Unit tests for rtc_image: file round trips, sRGB, frame names, blits and content hashes.
+#include "common/image/image.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "common/base/error.h"
+
+namespace rtc {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+std::string hex(float value) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%a", static_cast<double>(value));
+  return text;
+}
+
+// sRGB encode in double: an independent reference, trusted to about 1e-12.
+double srgb_encode_reference(double linear) {
+  return linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1.0 / 2.4) - 0.055;
+}
+
+double srgb_decode_reference(double encoded) {
+  return encoded <= 0.04045 ? encoded / 12.92 : std::pow((encoded + 0.055) / 1.055, 2.4);
+}
+
+float float_from_bits(std::uint32_t bits) { return std::bit_cast<float>(bits); }
+
+// A test image whose every channel differs per pixel, with values exact in half.
+Image make_test_image(int width, int height, bool with_depth, bool with_normal) {
+  Image image(width, height, with_depth, with_normal);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const auto i = static_cast<std::size_t>(y * width + x);
+      float* p = image.pixel(x, y);
+      p[0] = static_cast<float>(x) / 8.0f;
+      p[1] = static_cast<float>(y) / 16.0f;
+      p[2] = 0.5f + static_cast<float>(x + y) / 1024.0f;
+      p[3] = (x + y) % 2 == 0 ? 1.0f : 0.25f;
+      if (with_depth) image.depth[i] = x == 0 ? kInf : 1000.0f + static_cast<float>(i) * 0.125f;
+      if (with_normal) {
+        image.normal[3 * i + 0] = x == 0 ? 0.0f : 0.5f;
+        image.normal[3 * i + 1] = x == 0 ? 0.0f : -0.75f;
+        image.normal[3 * i + 2] = x == 0 ? 0.0f : static_cast<float>(y) / 32.0f;
+      }
+    }
+  }
+  return image;
+}
+
+std::set<std::string> names_in(const fs::path& folder) {
+  std::set<std::string> names;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    names.insert(entry.path().filename().string());
+  }
+  return names;
+}
+
+// Each test writes into its own fresh folder, removed afterwards.
+class ImageFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / fmt::format("rtc_image_test_{}_{}_{}", ::getpid(),
+                                                   info->test_suite_name(), info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ignored;
+    fs::remove_all(dir_, ignored);
+  }
+  fs::path dir_;
+};
+
+// ---- EXR -------------------------------------------------------------------------------------
+
+using ExrFile = ImageFileTest;
+
+TEST_F(ExrFile, HalfRoundTripKeepsValuesDepthAndNormals) {
+  const Image image = make_test_image(13, 7, true, true);
+  const fs::path path = dir_ / "frame.exr";
+  write_image(path, image);
+
+  const Image back = read_image(path);
+  ASSERT_EQ(back.width, 13);
+  ASSERT_EQ(back.height, 7);
+  ASSERT_TRUE(back.has_depth());
+  ASSERT_TRUE(back.has_normal());
+  EXPECT_EQ(back.rgba, image.rgba);
+  EXPECT_EQ(back.depth, image.depth);
+  EXPECT_EQ(back.normal, image.normal);
+  EXPECT_EQ(image_hash(back), image_hash(image));
+}
+
+TEST_F(ExrFile, HalfFileNamesAndTypesItsChannels) {
+  const fs::path path = dir_ / "frame.exr";
+  write_image(path, make_test_image(4, 3, true, true));
+
+  const ImageFileInfo info = read_image_info(path);
+  EXPECT_EQ(info.width, 4);
+  EXPECT_EQ(info.height, 3);
+  ASSERT_EQ(info.channel_names.size(), 8u);
+  ASSERT_EQ(info.channel_types.size(), 8u);
+  const std::set<std::string> names(info.channel_names.begin(), info.channel_names.end());
+  EXPECT_EQ(names, (std::set<std::string>{"R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z"}));
+  for (std::size_t c = 0; c < info.channel_names.size(); ++c) {
+    const std::string expected = info.channel_names[c] == "Z" ? "float" : "half";
+    EXPECT_EQ(info.channel_types[c], expected) << "channel " << info.channel_names[c];
+  }
+}
+
+TEST_F(ExrFile, HalfRoundsToTheNearestHalf) {
+  Image image(1, 1);
+  image.rgba = {0.1f, 1.0f / 3.0f, 65504.0f, 1.0f};
+  const fs::path path = dir_ / "half.exr";
+  write_image(path, image);
+
+  const Image back = read_image(path);
+  // The halves nearest 0.1 and 1/3; 65504 is the largest finite half.
+  EXPECT_EQ(back.rgba[0], 0.0999755859375f) << hex(back.rgba[0]);
+  EXPECT_EQ(back.rgba[1], 0.333251953125f) << hex(back.rgba[1]);
+  EXPECT_EQ(back.rgba[2], 65504.0f);
+  EXPECT_EQ(back.rgba[3], 1.0f);
+}
+
+TEST_F(ExrFile, FloatRoundTripIsBitExact) {
+  constexpr std::uint32_t kSeed = 20240611;
+  SCOPED_TRACE(fmt::format("seed {}", kSeed));
+  std::mt19937 rng(kSeed);
+  std::uniform_real_distribution<float> value(-4.0f, 4.0f);
+  Image image(17, 9, true, true);
+  for (float& v : image.rgba) v = value(rng);
+  for (float& v : image.depth) v = std::abs(value(rng)) * 1000.0f;
+  for (float& v : image.normal) v = value(rng) / 4.0f;
+  image.rgba[0] = -0.0f;
+  image.rgba[1] = 1e-40f;  // subnormal
+  image.depth[0] = kInf;
+
+  const fs::path path = dir_ / "float.exr";
+  ImageWriteOptions options;
+  options.exr_type = ExrPixelType::Float;
+  write_image(path, image, options);
+
+  const ImageFileInfo info = read_image_info(path);
+  for (const std::string& type : info.channel_types) EXPECT_EQ(type, "float");
+  const Image back = read_image(path);
+  EXPECT_EQ(image_hash(back), image_hash(image));
+  EXPECT_TRUE(std::signbit(back.rgba[0]));
+  EXPECT_EQ(back.rgba[1], 1e-40f);
+  EXPECT_EQ(back.depth[0], kInf);
+}
+
+TEST_F(ExrFile, OptionsLeaveOutDepthAndNormals) {
+  const fs::path path = dir_ / "rgba_only.exr";
+  ImageWriteOptions options;
+  options.write_depth = false;
+  options.write_normal = false;
+  write_image(path, make_test_image(5, 4, true, true), options);
+
+  const ImageFileInfo info = read_image_info(path);
+  const std::set<std::string> names(info.channel_names.begin(), info.channel_names.end());
+  EXPECT_EQ(names, (std::set<std::string>{"R", "G", "B", "A"}));
+  const Image back = read_image(path);
+  EXPECT_FALSE(back.has_depth());
+  EXPECT_FALSE(back.has_normal());
+  EXPECT_EQ(back.rgba, make_test_image(5, 4, false, false).rgba);
+}
+
+TEST_F(ExrFile, ImageWithoutDepthWritesNoZ) {
+  const fs::path path = dir_ / "no_depth.exr";
+  write_image(path, make_test_image(3, 3, false, true));
+  const ImageFileInfo info = read_image_info(path);
+  const std::set<std::string> names(info.channel_names.begin(), info.channel_names.end());
+  EXPECT_EQ(names, (std::set<std::string>{"R", "G", "B", "A", "N.X", "N.Y", "N.Z"}));
+  const Image back = read_image(path);
+  EXPECT_FALSE(back.has_depth());
+  EXPECT_TRUE(back.has_normal());
+}
+
+TEST_F(ExrFile, StoresMetadata) {
+  const fs::path path = dir_ / "meta.exr";
+  ImageWriteOptions options;
+  options.metadata = {{"rtc:scene", "sponza.json"}, {"rtc:frame", "7"}};
+  write_image(path, make_test_image(2, 2, false, false), options);
+
+  const ImageFileInfo info = read_image_info(path);
+  const auto has = [&](const std::string& key, const std::string& value) {
+    return std::find(info.metadata.begin(), info.metadata.end(), std::pair(key, value)) !=
+           info.metadata.end();
+  };
+  EXPECT_TRUE(has("rtc:scene", "sponza.json"));
+  EXPECT_TRUE(has("rtc:frame", "7"));
+}
+
+// ---- PNG, TIFF, JPEG, PPM -------------------------------------------------------------------
+
+using PngFile = ImageFileTest;
+
+TEST_F(PngFile, EveryCodeValueRoundTripsExactly) {
+  Image image(256, 2);
+  for (int v = 0; v < 256; ++v) {
+    for (int y = 0; y < 2; ++y) {
+      float* p = image.pixel(v, y);
+      const auto code = static_cast<std::uint8_t>(y == 0 ? v : 255 - v);
+      p[0] = srgb8_to_linear(code);
+      p[1] = srgb8_to_linear(static_cast<std::uint8_t>(255 - code));
+      p[2] = srgb8_to_linear(code);
+      p[3] = static_cast<float>(code) / 255.0f;
+    }
+  }
+  const fs::path path = dir_ / "codes.png";
+  write_image(path, image);
+
+  const ImageFileInfo info = read_image_info(path);
+  EXPECT_EQ(info.channel_names, (std::vector<std::string>{"R", "G", "B", "A"}));
+  EXPECT_EQ(info.channel_types, std::vector<std::string>(4, "uint8"));
+  const Image back = read_image(path);
+  ASSERT_EQ(back.rgba.size(), image.rgba.size());
+  for (std::size_t i = 0; i < image.rgba.size(); ++i) {
+    ASSERT_EQ(back.rgba[i], image.rgba[i]) << "float " << i << ": " << hex(back.rgba[i])
+                                           << " != " << hex(image.rgba[i]);
+  }
+}
+
+TEST_F(PngFile, StoresTheSrgbCodeOfEachLinearValue) {
+  constexpr std::uint32_t kSeed = 7;
+  SCOPED_TRACE(fmt::format("seed {}", kSeed));
+  std::mt19937 rng(kSeed);
+  std::uniform_real_distribution<float> value(-0.25f, 1.25f);
+  Image image(31, 5);
+  for (float& v : image.rgba) v = value(rng);
+  const fs::path path = dir_ / "random.png";
+  write_image(path, image);
+
+  const Image back = read_image(path);
+  for (std::size_t i = 0; i < image.rgba.size(); ++i) {
+    const float v = image.rgba[i];
+    const bool alpha = i % 4 == 3;
+    const float expected =
+        alpha ? std::round(std::clamp(v, 0.0f, 1.0f) * 255.0f) / 255.0f
+              : srgb8_to_linear(linear_to_srgb8(v));
+    ASSERT_EQ(back.rgba[i], expected) << "float " << i << " was " << hex(v);
+  }
+}
+
+TEST_F(PngFile, StoresMetadata) {
+  const fs::path path = dir_ / "meta.png";
+  ImageWriteOptions options;
+  options.metadata = {{"rtc:scene", "cornell.json"}};
+  write_image(path, make_test_image(2, 2, false, false), options);
+  const ImageFileInfo info = read_image_info(path);
+  EXPECT_NE(std::find(info.metadata.begin(), info.metadata.end(),
+                      std::pair<std::string, std::string>("rtc:scene", "cornell.json")),
+            info.metadata.end());
+}
+
+using OtherFormats = ImageFileTest;
+
+TEST_F(OtherFormats, TiffIsFloatAndBitExact) {
+  const Image image = make_test_image(6, 5, false, false);
+  const fs::path path = dir_ / "frame.tif";
+  write_image(path, image);
+  EXPECT_EQ(read_image_info(path).channel_types, std::vector<std::string>(4, "float"));
+  EXPECT_EQ(image_hash(read_image(path)), image_hash(image));
+}
+
+TEST_F(OtherFormats, PpmIsSrgbWithoutAlpha) {
+  const Image image = make_test_image(6, 5, false, false);
+  const fs::path path = dir_ / "frame.ppm";
+  write_image(path, image);
+
+  const ImageFileInfo info = read_image_info(path);
+  EXPECT_EQ(info.channel_names.size(), 3u);
+  const Image back = read_image(path);
+  for (std::size_t i = 0; i < image.rgba.size(); ++i) {
+    const float expected = i % 4 == 3 ? 1.0f : srgb8_to_linear(linear_to_srgb8(image.rgba[i]));
+    ASSERT_EQ(back.rgba[i], expected) << "float " << i;
+  }
+}
+
+TEST_F(OtherFormats, JpegKeepsAFlatColourClose) {
+  Image image(16, 16);
+  for (int y = 0; y < 16; ++y) {
+    for (int x = 0; x < 16; ++x) {
+      float* p = image.pixel(x, y);
+      p[0] = srgb8_to_linear(200);
+      p[1] = srgb8_to_linear(100);
+      p[2] = srgb8_to_linear(50);
+      p[3] = 0.5f;
+    }
+  }
+  const fs::path path = dir_ / "frame.JPG";  // extensions are case-insensitive
+  write_image(path, image);
+
+  const Image back = read_image(path);
+  const int expected[3] = {200, 100, 50};
+  for (std::size_t i = 0; i < back.rgba.size(); i += 4) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      EXPECT_NEAR(linear_to_srgb8(back.rgba[i + c]), expected[c], 3) << "float " << i + c;
+    }
+    EXPECT_EQ(back.rgba[i + 3], 1.0f);
+  }
+}
+
+// ---- Writing: errors and atomicity -----------------------------------------------------------
+
+using WriteImage = ImageFileTest;
+
+TEST_F(WriteImage, MissingFolderIsAnErrorNamingThePath) {
+  const fs::path path = dir_ / "no_such_folder" / "frame.exr";
+  try {
+    write_image(path, make_test_image(2, 2, false, false));
+    FAIL() << "expected rtc::Error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find(path.string()), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("does not exist"), std::string::npos)
+        << error.what();
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "no_such_folder"));
+}
+
+TEST_F(WriteImage, LeavesOnlyTheFinalFiles) {
+  const Image first = make_test_image(8, 8, true, true);
+  write_image(dir_ / "a.exr", first);
+  write_image(dir_ / "b.png", first);
+  write_image(dir_ / "c.tif", first);
+  EXPECT_EQ(names_in(dir_), (std::set<std::string>{"a.exr", "b.png", "c.tif"}));
+
+  // Writing over an existing frame replaces it, again with no leftovers.
+  Image second = first;
+  second.rgba[0] = 0.75f;
+  write_image(dir_ / "a.exr", second);
+  EXPECT_EQ(names_in(dir_), (std::set<std::string>{"a.exr", "b.png", "c.tif"}));
+  EXPECT_EQ(read_image(dir_ / "a.exr").rgba[0], 0.75f);
+}
+
+TEST_F(WriteImage, ConcurrentWritesLeaveOnlyWholeFinalFiles) {
+  // Four threads write four names, and all of them also write one shared name.
+  const Image image = make_test_image(32, 32, true, true);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      for (int round = 0; round < 3; ++round) {
+        write_image(dir_ / fmt::format("own_{}.exr", t), image);
+        write_image(dir_ / "shared.exr", image);
+      }
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(names_in(dir_), (std::set<std::string>{"own_0.exr", "own_1.exr", "own_2.exr",
+                                                   "own_3.exr", "shared.exr"}));
+  EXPECT_EQ(image_hash(read_image(dir_ / "shared.exr")), image_hash(image));
+}
+
+TEST_F(WriteImage, FailedRenameLeavesNoTemporaryFile) {
+  // The final name is taken by a folder, so the rename at the end fails.
+  fs::create_directory(dir_ / "frame.exr");
+  fs::create_directory(dir_ / "frame.png");
+  EXPECT_THROW(write_image(dir_ / "frame.exr", make_test_image(4, 4, true, true)), Error);
+  EXPECT_THROW(write_image(dir_ / "frame.png", make_test_image(4, 4, true, true)), Error);
+  EXPECT_EQ(names_in(dir_), (std::set<std::string>{"frame.exr", "frame.png"}));
+  EXPECT_TRUE(fs::is_empty(dir_ / "frame.exr"));
+}
+
+TEST_F(WriteImage, UnsupportedExtensionIsAnErrorNamingThePath) {
+  const fs::path path = dir_ / "frame.bmp";
+  try {
+    write_image(path, make_test_image(2, 2, false, false));
+    FAIL() << "expected rtc::Error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find(path.string()), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find(".bmp"), std::string::npos) << error.what();
+  }
+  EXPECT_TRUE(fs::is_empty(dir_));
+}
+
+TEST_F(WriteImage, EmptyOrMisshapenImageIsAnError) {
+  EXPECT_THROW(write_image(dir_ / "empty.exr", Image()), Error);
+  Image short_rgba(4, 4);
+  short_rgba.rgba.pop_back();
+  EXPECT_THROW(write_image(dir_ / "short.exr", short_rgba), Error);
+  EXPECT_TRUE(fs::is_empty(dir_));
+}
+
+TEST_F(WriteImage, ParentThatIsAFileIsAnError) {
+  std::ofstream(dir_ / "plain_file") << "not a folder";
+  EXPECT_THROW(write_image(dir_ / "plain_file" / "frame.exr", make_test_image(2, 2, false, false)),
+               Error);
+}
+
+using ReadImage = ImageFileTest;
+
+TEST_F(ReadImage, MissingFileIsAnErrorNamingThePath) {
+  const fs::path path = dir_ / "absent.exr";
+  try {
+    (void)read_image(path);
+    FAIL() << "expected rtc::Error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find(path.string()), std::string::npos) << error.what();
+  }
+  EXPECT_THROW((void)read_image_info(path), Error);
+}
+
+TEST_F(ReadImage, GarbageFileIsAnError) {
+  std::ofstream(dir_ / "garbage.exr") << "this is not an OpenEXR file";
+  EXPECT_THROW((void)read_image(dir_ / "garbage.exr"), Error);
+}
+
+// ---- sRGB ------------------------------------------------------------------------------------
+
+TEST(Srgb, ExactAtTheEndsAndClampsOutside) {
+  EXPECT_EQ(linear_to_srgb8(0.0f), 0);
+  EXPECT_EQ(linear_to_srgb8(-0.0f), 0);
+  EXPECT_EQ(linear_to_srgb8(1.0f), 255);
+  EXPECT_EQ(linear_to_srgb8(-1.0f), 0);
+  EXPECT_EQ(linear_to_srgb8(2.0f), 255);
+  EXPECT_EQ(linear_to_srgb8(kInf), 255);
+  EXPECT_EQ(linear_to_srgb8(-kInf), 0);
+  EXPECT_EQ(linear_to_srgb8(std::numeric_limits<float>::quiet_NaN()), 0);
+  EXPECT_EQ(linear_to_srgb8(std::numeric_limits<float>::denorm_min()), 0);
+  EXPECT_EQ(srgb8_to_linear(0), 0.0f);
+  EXPECT_EQ(srgb8_to_linear(255), 1.0f);
+}
+
+TEST(Srgb, KnownValues) {
+  // Codes from the exact IEC 61966-2-1 formula in 50-digit arithmetic (255 * encode shown).
+  EXPECT_EQ(linear_to_srgb8(0.5f), 188);        // 187.516
+  EXPECT_EQ(linear_to_srgb8(0.18f), 118);       // 117.646
+  EXPECT_EQ(linear_to_srgb8(0.214f), 127);      // 127.489
+  EXPECT_EQ(linear_to_srgb8(0.9f), 243);        // 243.445
+  EXPECT_EQ(linear_to_srgb8(0.01f), 25);        // 25.462
+  EXPECT_EQ(linear_to_srgb8(0.0031308f), 10);   // 10.315, the end of the linear segment
+  EXPECT_EQ(linear_to_srgb8(0.001f), 3);        // 3.295
+  EXPECT_EQ(linear_to_srgb8(0.0001f), 0);       // 0.329
+  EXPECT_NEAR(srgb8_to_linear(188), 0.50289f, 1e-5f);
+  EXPECT_NEAR(srgb8_to_linear(128), 0.21586f, 1e-5f);
+}
+
+TEST(Srgb, MonotoneOverFloatsInZeroToOne) {
+  const std::uint32_t one_bits = std::bit_cast<std::uint32_t>(1.0f);
+  std::uint8_t previous = 0;
+  std::set<int> seen;
+  // Every 61st float in [0, 1]: about 17 million values.
+  for (std::uint32_t bits = 0; bits <= one_bits; bits += 61) {
+    const std::uint8_t code = linear_to_srgb8(float_from_bits(bits));
+    ASSERT_GE(code, previous) << "at " << hex(float_from_bits(bits));
+    previous = code;
+    seen.insert(code);
+  }
+  EXPECT_EQ(seen.size(), 256u);
+}
+
+TEST(Srgb, EveryStepIsAtTheExactRoundingPoint) {
+  // For each code, find the first float that reaches it (the function is monotone), then
+  // check against the double formula that the step sits at 255 * encode(x) = code - 0.5:
+  // the step float is at or past it and the float before is short of it.
+  const std::uint32_t one_bits = std::bit_cast<std::uint32_t>(1.0f);
+  for (int code = 1; code <= 255; ++code) {
+    std::uint32_t lo = 0;
+    std::uint32_t hi = one_bits;
+    while (lo < hi) {
+      const std::uint32_t mid = lo + (hi - lo) / 2;
+      if (linear_to_srgb8(float_from_bits(mid)) >= code) {
+        hi = mid;
+      } else {
+        lo = mid + 1;
+      }
+    }
+    const float step = float_from_bits(lo);
+    const float before = float_from_bits(lo - 1);
+    const double boundary = code - 0.5;
+    // 1e-9 covers the error of std::pow; the gaps between neighbouring floats are far larger.
+    EXPECT_GE(255.0 * srgb_encode_reference(step), boundary - 1e-9) << code << " " << hex(step);
+    EXPECT_LT(255.0 * srgb_encode_reference(before), boundary + 1e-9) << code << " " << hex(before);
+    EXPECT_EQ(linear_to_srgb8(step), code) << hex(step);
+    EXPECT_EQ(linear_to_srgb8(before), code - 1) << hex(before);
+  }
+}
+
+TEST(Srgb, DecodeIsNearestFloatAndRoundTrips) {
+  for (int v = 0; v < 256; ++v) {
+    const auto code = static_cast<std::uint8_t>(v);
+    const float linear = srgb8_to_linear(code);
+    EXPECT_EQ(linear_to_srgb8(linear), code) << "code " << v;
+    const double exact = srgb_decode_reference(v / 255.0);
+    // Nearest float: within half a float ulp (plus the reference's own tiny error).
+    const double half_ulp =
+        0.5 * (static_cast<double>(std::nextafter(linear, 2.0f)) - static_cast<double>(linear));
+    EXPECT_LE(std::abs(static_cast<double>(linear) - exact), half_ulp * (1.0 + 1e-6))
+        << "code " << v << " gives " << hex(linear);
+  }
+}
+
+// ---- Frame names -----------------------------------------------------------------------------
+
+TEST(FramePattern, HashRunIsZeroPaddedFrameNumber) {
+  EXPECT_EQ(expand_frame_pattern("frames/f_####.exr", 7, true), "frames/f_0007.exr");
+  EXPECT_EQ(expand_frame_pattern("frames/f_#.exr", 7, true), "frames/f_7.exr");
+  EXPECT_EQ(expand_frame_pattern("f_######.png", 1234, false), "f_001234.png");
+  EXPECT_EQ(expand_frame_pattern("run_##/f.exr", 3, true), "run_03/f.exr");
+}
+
+TEST(FramePattern, PrintfStyleIsAccepted) {
+  EXPECT_EQ(expand_frame_pattern("frames/f_%04d.exr", 7, true), "frames/f_0007.exr");
+  EXPECT_EQ(expand_frame_pattern("f_%d.exr", 42, true), "f_42.exr");
+  EXPECT_EQ(expand_frame_pattern("f_%010d.exr", 5, true), "f_0000000005.exr");
+  EXPECT_EQ(expand_frame_pattern("100%%_f%03d.exr", 9, true), "100%_f009.exr");
+}
+
+TEST(FramePattern, WiderFrameNumbersAreNotCut) {
+  EXPECT_EQ(expand_frame_pattern("f_##.exr", 123, true), "f_123.exr");
+  EXPECT_EQ(expand_frame_pattern("f_%02d.exr", 12345, true), "f_12345.exr");
+}
+
+TEST(FramePattern, NoPlaceholderIsUnchangedForOneFrame) {
+  EXPECT_EQ(expand_frame_pattern("out.exr", 7, false), "out.exr");
+  EXPECT_EQ(expand_frame_pattern("renders/out", 0, false), "renders/out");
+}
+
+TEST(FramePattern, NoPlaceholderGetsNumberBeforeExtensionForManyFrames) {
+  EXPECT_EQ(expand_frame_pattern("out.exr", 7, true), "out_0007.exr");
+  EXPECT_EQ(expand_frame_pattern("renders/out.v2.png", 12, true), "renders/out.v2_0012.png");
+  EXPECT_EQ(expand_frame_pattern("renders.v1/out", 3, true), "renders.v1/out_0003");
+  EXPECT_EQ(expand_frame_pattern("renders/.hidden", 3, true), "renders/.hidden_0003");
+  EXPECT_EQ(expand_frame_pattern("out.exr", 123456, true), "out_123456.exr");
+}
+
+TEST(FramePattern, BadPatternsThrowNamingThePattern) {
+  const std::vector<std::string> bad = {
+      "",             // empty
+      "frames/",      // no file name
+      "f_##_##.exr",  // two placeholders
+      "f_##_%d.exr",  // mixed placeholders
+      "f_%s.exr",     // not a number
+      "f_%4d.exr",    // space padding
+      "f_%0d.exr",    // zero width
+      "f_%011d.exr",  // wider than any int
+      "f_%.exr",      // lone percent
+      "f_%",          // percent at the end
+  };
+  for (const std::string& pattern : bad) {
+    try {
+      (void)expand_frame_pattern(pattern, 1, true);
+      ADD_FAILURE() << "no error for '" << pattern << "'";
+    } catch (const Error& error) {
+      EXPECT_NE(std::string(error.what()).find(fmt::format("'{}'", pattern)), std::string::npos)
+          << error.what();
+    }
+  }
+  EXPECT_THROW((void)expand_frame_pattern("f_####.exr", -1, true), Error);
+}
+
+// ---- Image, blit, hash -----------------------------------------------------------------------
+
+TEST(Image, ConstructorFillsTheBackground) {
+  const Image image(3, 2, true, true);
+  EXPECT_EQ(image.rgba, std::vector<float>(24, 0.0f));
+  EXPECT_EQ(image.depth, std::vector<float>(6, kInf));
+  EXPECT_EQ(image.normal, std::vector<float>(18, 0.0f));
+  const Image plain(3, 2);
+  EXPECT_FALSE(plain.has_depth());
+  EXPECT_FALSE(plain.has_normal());
+}
+
+TEST(Image, PixelIsRowMajorFromTheTop) {
+  Image image(5, 3);
+  EXPECT_EQ(image.pixel(0, 0), image.rgba.data());
+  EXPECT_EQ(image.pixel(2, 1), image.rgba.data() + 4 * (1 * 5 + 2));
+  EXPECT_EQ(image.pixel(4, 2), image.rgba.data() + 4 * 14);
+}
+
+TEST(Image, BlitCopiesEveryChannelIntoPlace) {
+  Image frame(6, 5, true, true);
+  const Image tile = make_test_image(3, 2, true, true);
+  frame.blit(tile, 2, 3);
+  for (int y = 0; y < 5; ++y) {
+    for (int x = 0; x < 6; ++x) {
+      const bool inside = x >= 2 && x < 5 && y >= 3 && y < 5;
+      const auto i = static_cast<std::size_t>(y * 6 + x);
+      const auto t = static_cast<std::size_t>((y - 3) * 3 + (x - 2));
+      for (std::size_t c = 0; c < 4; ++c) {
+        EXPECT_EQ(frame.rgba[4 * i + c], inside ? tile.rgba[4 * t + c] : 0.0f) << x << "," << y;
+      }
+      EXPECT_EQ(frame.depth[i], inside ? tile.depth[t] : kInf) << x << "," << y;
+      for (std::size_t c = 0; c < 3; ++c) {
+        EXPECT_EQ(frame.normal[3 * i + c], inside ? tile.normal[3 * t + c] : 0.0f);
+      }
+    }
+  }
+}
+
+TEST(Image, BlitSkipsChannelsMissingOnEitherSide) {
+  Image frame(4, 4, true, false);
+  frame.blit(make_test_image(2, 2, false, true), 1, 1);
+  EXPECT_EQ(frame.depth, std::vector<float>(16, kInf));
+  EXPECT_FALSE(frame.has_normal());
+  EXPECT_EQ(frame.pixel(1, 1)[2], 0.5f);
+}
+
+TEST(Image, BlitOutsideTheImageThrows) {
+  Image frame(4, 4);
+  const Image tile(2, 2);
+  EXPECT_THROW(frame.blit(tile, 3, 0), Error);
+  EXPECT_THROW(frame.blit(tile, 0, 3), Error);
+  EXPECT_THROW(frame.blit(tile, -1, 0), Error);
+  EXPECT_THROW(frame.blit(tile, std::numeric_limits<int>::max(), 0), Error);
+  Image broken(2, 2);
+  broken.rgba.resize(3);
+  EXPECT_THROW(frame.blit(broken, 0, 0), Error);
+  EXPECT_NO_THROW(frame.blit(tile, 2, 2));
+}
+
+TEST(ImageHash, ChangesWhenOneBitChanges) {
+  const Image image = make_test_image(7, 5, true, true);
+  const std::string base = image_hash(image);
+  EXPECT_EQ(base.size(), 16u);
+  EXPECT_EQ(image_hash(image), base);
+  EXPECT_EQ(image_hash(Image(image)), base);
+
+  const auto flip_lowest_bit = [](float& value) {
+    value = std::bit_cast<float>(std::bit_cast<std::uint32_t>(value) ^ 1u);
+  };
+  Image changed = image;
+  flip_lowest_bit(changed.rgba[17]);
+  EXPECT_NE(image_hash(changed), base);
+  changed = image;
+  flip_lowest_bit(changed.depth[30]);
+  EXPECT_NE(image_hash(changed), base);
+  changed = image;
+  flip_lowest_bit(changed.normal[0]);
+  EXPECT_NE(image_hash(changed), base);
+}
+
+TEST(ImageHash, DistinguishesZeroSignsShapesAndChannels) {
+  Image positive(2, 1);
+  Image negative(2, 1);
+  negative.rgba[0] = -0.0f;
+  EXPECT_NE(image_hash(positive), image_hash(negative));
+  EXPECT_NE(image_hash(Image(2, 1)), image_hash(Image(1, 2)));
+  EXPECT_NE(image_hash(Image(2, 1)), image_hash(Image(2, 1, true, false)));
+  EXPECT_NE(image_hash(Image(2, 1, true, false)), image_hash(Image(2, 1, false, true)));
+}
+
+TEST(ImageHash, IsFnv1aOfTheDocumentedBytes) {
+  // Golden values from an independent FNV-1a: the hash must not change across machines.
+  Image image(2, 1);
+  image.rgba = {0.25f, 0.5f, 1.0f, 1.0f, -0.0f, 2.0f, 3.0f, 0.5f};
+  EXPECT_EQ(image_hash(image), "196af026197ed64c");
+  image.depth = {1.5f, kInf};
+  image.normal = {0.0f, 0.0f, 1.0f, 0.0f, 1.0f, 0.0f};
+  EXPECT_EQ(image_hash(image), "66412da4f4f800c0");
+}
+
+}  // namespace
+}  // namespace rtc

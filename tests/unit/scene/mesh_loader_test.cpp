@@ -1,0 +1,373 @@
+// OBJ/MTL, PLY and glTF loaders on small generated files: what they read and every way they
+// reject bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "common/scene/mesh_file.h"
+#include "test_files.h"
+
+namespace rtc {
+namespace {
+
+using test::error_of;
+using test::TempDir;
+
+// --- OBJ --------------------------------------------------------------------------------
+
+TEST(ObjLoader, ReadsTrianglesNormalsAndMaterials) {
+  TempDir dir;
+  dir.write("m.mtl",
+            "# two materials\n"
+            "newmtl red\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nNs 100\nKe 0 0 0.25\nd 0.75\nillum 3\n"
+            "newmtl grey\nKd 0.5\nillum 2\n");
+  const auto obj = dir.write("m.obj",
+                             "mtllib m.mtl\n"
+                             "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                             "vn 0 0 2\n"
+                             "usemtl red\n"
+                             "f 1//1 2//1 3//1\n"
+                             "usemtl grey\n"
+                             "f 1 3 4\n");
+  const MeshFile file = load_obj(obj);
+  const Mesh& mesh = file.mesh;
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.source_index, (std::vector<std::uint32_t>{0, 1}));
+  // Vertices 1 and 3 appear with and without a normal: two mesh vertices each.
+  EXPECT_EQ(mesh.positions.size(), 6u);
+  ASSERT_EQ(mesh.normals.size(), mesh.positions.size());
+  EXPECT_EQ(mesh.normals[mesh.triangles[0].x], glm::vec3(0, 0, 1)) << "normals are normalised";
+  EXPECT_EQ(mesh.normals[mesh.triangles[1].x], glm::vec3(0.0f)) << "no normal: zero";
+  ASSERT_EQ(file.materials.size(), 3u);  // default + red + grey
+  const Material& red = file.materials[mesh.material_ids[0]];
+  EXPECT_EQ(red.name, "red");
+  EXPECT_EQ(red.diffuse, glm::vec3(0.8f, 0.1f, 0.1f));
+  EXPECT_EQ(red.specular, glm::vec3(0.5f));
+  EXPECT_EQ(red.shininess, 100.0f);
+  EXPECT_EQ(red.emission, glm::vec3(0, 0, 0.25f));
+  EXPECT_EQ(red.opacity, 0.75f);
+  EXPECT_TRUE(red.reflective);
+  const Material& grey = file.materials[mesh.material_ids[1]];
+  EXPECT_EQ(grey.name, "grey");
+  EXPECT_EQ(grey.diffuse, glm::vec3(0.5f));
+  EXPECT_FALSE(grey.reflective);
+}
+
+TEST(ObjLoader, FanTriangulatesPolygonsFromVertexZero) {
+  TempDir dir;
+  const auto obj = dir.write("poly.obj",
+                             "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\n"
+                             "f 1 2 3 4 5\n"
+                             "f 1 2 3\n");
+  const Mesh mesh = load_obj(obj).mesh;
+  ASSERT_EQ(mesh.triangles.size(), 4u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(mesh.positions[mesh.triangles[k].x], glm::vec3(0, 0, 0)) << "fan from vertex 0";
+  }
+  EXPECT_EQ(mesh.source_index, (std::vector<std::uint32_t>{0, 1, 2, 3}));
+}
+
+TEST(ObjLoader, AcceptsNegativeIndicesAndTextureCoordinates) {
+  TempDir dir;
+  const auto obj = dir.write("neg.obj",
+                             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                             "f -3/-3 -2/-2 -1/-1\n");
+  const Mesh mesh = load_obj(obj).mesh;
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  EXPECT_EQ(mesh.positions[mesh.triangles[0].y], glm::vec3(1, 0, 0));
+}
+
+TEST(ObjLoader, MissingMtlWarnsAndUsesTheDefaultMaterial) {
+  TempDir dir;
+  const auto obj = dir.write("nomtl.obj",
+                             "mtllib absent.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl shiny\nf 1 2 3\n");
+  const MeshFile file = load_obj(obj);
+  ASSERT_EQ(file.mesh.material_ids.size(), 1u);
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]), Material{});
+}
+
+TEST(ObjLoader, IndexOutOfRangeNamesFileAndLine) {
+  TempDir dir;
+  const auto obj = dir.write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n# comment\nf 1 2 4\n");
+  const std::string message = error_of([&] { (void)load_obj(obj); });
+  EXPECT_NE(message.find("bad.obj:5:"), std::string::npos) << message;
+  EXPECT_NE(message.find("out of range"), std::string::npos) << message;
+  const auto zero = dir.write("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(zero); }).find("zero.obj:4:"), std::string::npos);
+  const auto normal = dir.write("vn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//2 2//1 3//1\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(normal); }).find("normal index 2"), std::string::npos);
+}
+
+TEST(ObjLoader, NonFiniteCoordinateIsRejected) {
+  TempDir dir;
+  for (const char* value : {"nan", "inf", "-inf", "1e999", "abc"}) {
+    const auto obj = dir.write("nan.obj", std::string("v 0 0 0\nv ") + value + " 0 0\nv 0 1 0\nf 1 2 3\n");
+    const std::string message = error_of([&] { (void)load_obj(obj); });
+    EXPECT_NE(message.find("nan.obj:2:"), std::string::npos) << value << ": " << message;
+    EXPECT_NE(message.find("vertex x"), std::string::npos) << value << ": " << message;
+  }
+}
+
+TEST(ObjLoader, MeshWithoutTrianglesIsRejected) {
+  TempDir dir;
+  const auto obj = dir.write("empty.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(obj); }).find("no triangles"), std::string::npos);
+  const auto nothing = dir.write("nothing.obj", "");
+  EXPECT_NE(error_of([&] { (void)load_obj(nothing); }).find("no triangles"), std::string::npos);
+}
+
+TEST(ObjLoader, ShortFaceAndGarbageAreRejectedWithTheirLine) {
+  TempDir dir;
+  const auto two = dir.write("two.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(two); }).find("two.obj:3: face with 2 vertices"),
+            std::string::npos);
+  const auto letters = dir.write("letters.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 x 3\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(letters); }).find("letters.obj:4: bad face vertex"),
+            std::string::npos);
+  const auto truncated = dir.write("cut.obj", "v 0 0 0\nv 1 0");
+  EXPECT_NE(error_of([&] { (void)load_obj(truncated); }).find("cut.obj:2:"), std::string::npos);
+  std::string noise;
+  for (int i = 0; i < 4096; ++i) noise += static_cast<char>((i * 7919 + 13) % 256);
+  const auto binary = dir.write("noise.obj", noise);
+  (void)error_of([&] { (void)load_obj(binary); });  // an rtc::Error, not a crash
+}
+
+TEST(ObjLoader, DropsDegenerateTrianglesAndKeepsSourceIndices) {
+  TempDir dir;
+  const auto obj = dir.write("degenerate.obj",
+                             "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\n"
+                             "f 1 2 3\n"
+                             "f 1 2 2\n"   // repeated index
+                             "f 1 2 4\n"   // collinear: zero area
+                             "f 3 2 1\n");
+  const Mesh mesh = load_obj(obj).mesh;
+  EXPECT_EQ(mesh.dropped_degenerate, 2u);
+  EXPECT_EQ(mesh.source_index, (std::vector<std::uint32_t>{0, 3}));
+  EXPECT_EQ(mesh.material_ids.size(), 2u);
+  const auto all = dir.write("all.obj", "v 0 0 0\nv 1 0 0\nf 1 2 2\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(all); }).find("all 1 triangles are degenerate"),
+            std::string::npos);
+}
+
+TEST(MeshFile, MissingFileAndUnknownFormatAreRejected) {
+  TempDir dir;
+  EXPECT_NE(error_of([&] { (void)load_mesh_file(dir.path() / "absent.obj"); }).find("not found"),
+            std::string::npos);
+  const auto stl = dir.write("x.stl", "solid x\n");
+  EXPECT_NE(error_of([&] { (void)load_mesh_file(stl); }).find("unknown mesh format"),
+            std::string::npos);
+  const auto gz = dir.write("x.nff.gz", "\x1f\x8b");
+  EXPECT_NE(error_of([&] { (void)load_mesh_file(gz); }).find("decompress"), std::string::npos);
+  EXPECT_NE(error_of([&] { (void)load_obj(dir.path()); }).find("cannot"), std::string::npos);
+}
+
+// --- PLY --------------------------------------------------------------------------------
+
+struct PlyData {
+  std::vector<glm::vec3> points{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  std::vector<std::vector<int>> faces{{0, 1, 2, 3}, {0, 2, 1}};
+};
+
+std::string ply_header(const std::string& format, const PlyData& data, const std::string& index_type) {
+  return "ply\nformat " + format + " 1.0\ncomment test\nelement vertex " +
+         std::to_string(data.points.size()) +
+         "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+         std::to_string(data.faces.size()) + "\nproperty list uchar " + index_type +
+         " vertex_indices\nend_header\n";
+}
+
+std::string ascii_ply(const PlyData& data) {
+  std::string out = ply_header("ascii", data, "int");
+  for (const glm::vec3& p : data.points) {
+    out += std::to_string(p.x) + " " + std::to_string(p.y) + " " + std::to_string(p.z) + "\n";
+  }
+  for (const auto& f : data.faces) {
+    out += std::to_string(f.size());
+    for (int i : f) {
+      out += ' ';
+      out += std::to_string(i);
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+std::string binary_ply(const PlyData& data, bool big_endian = false) {
+  std::string out = ply_header(big_endian ? "binary_big_endian" : "binary_little_endian", data, "int");
+  auto put = [&](auto value) {
+    std::string bytes;
+    test::append_le(bytes, value);
+    if (big_endian) bytes = std::string(bytes.rbegin(), bytes.rend());
+    out += bytes;
+  };
+  for (const glm::vec3& p : data.points) {
+    put(p.x);
+    put(p.y);
+    put(p.z);
+  }
+  for (const auto& f : data.faces) {
+    out += static_cast<char>(f.size());
+    for (int i : f) put(static_cast<std::int32_t>(i));
+  }
+  return out;
+}
+
+TEST(PlyLoader, AsciiLittleAndBigEndianGiveTheSameMesh) {
+  TempDir dir;
+  const PlyData data;
+  const Mesh ascii = load_ply(dir.write("a.ply", ascii_ply(data))).mesh;
+  const Mesh little = load_ply(dir.write("le.ply", binary_ply(data))).mesh;
+  const Mesh big = load_ply(dir.write("be.ply", binary_ply(data, true))).mesh;
+  for (const Mesh* m : {&ascii, &little, &big}) {
+    EXPECT_EQ(m->positions, data.points);
+    ASSERT_EQ(m->triangles.size(), 3u) << "quad fanned into 2, plus 1";
+    EXPECT_EQ(m->triangles[0], glm::uvec3(0, 1, 2));
+    EXPECT_EQ(m->triangles[1], glm::uvec3(0, 2, 3));
+    EXPECT_EQ(m->triangles[2], glm::uvec3(0, 2, 1));
+    EXPECT_EQ(m->source_index, (std::vector<std::uint32_t>{0, 1, 2}));
+  }
+}
+
+TEST(PlyLoader, AcceptsHeaderLineWithoutKeywordAndNormals) {
+  TempDir dir;
+  const auto ply = dir.write("wuson_like.ply",
+                             "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: \n"
+                             "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                             "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
+                             "element face 1\nproperty list uchar uint vertex_indices\nend_header\n"
+                             "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n");
+  const Mesh mesh = load_ply(ply).mesh;
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  ASSERT_EQ(mesh.normals.size(), 3u);
+  EXPECT_EQ(mesh.normals[1], glm::vec3(0, 0, 1));
+}
+
+TEST(PlyLoader, TruncatedBinaryFileIsRejected) {
+  TempDir dir;
+  const std::string full = binary_ply(PlyData{});
+  for (const std::size_t cut : {full.size() - 1, full.size() - 10, full.size() - 40}) {
+    const auto ply = dir.write("cut.ply", full.substr(0, cut));
+    const std::string message = error_of([&] { (void)load_ply(ply); });
+    EXPECT_NE(message.find("cut.ply"), std::string::npos) << message;
+    EXPECT_NE(message.find("truncated"), std::string::npos) << message;
+  }
+  const auto header_only = dir.write("header.ply", "ply\nformat ascii 1.0\nelement vertex 3\n");
+  EXPECT_NE(error_of([&] { (void)load_ply(header_only); }).find("end_header"), std::string::npos);
+}
+
+TEST(PlyLoader, HugeElementCountIsRejectedBeforeAllocating) {
+  TempDir dir;
+  const auto ply = dir.write("huge.ply",
+                             "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n"
+                             "property float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0123456789");
+  const std::string message = error_of([&] { (void)load_ply(ply); });
+  EXPECT_NE(message.find("declares 4000000000 items"), std::string::npos) << message;
+}
+
+TEST(PlyLoader, IndexOutOfRangeIsRejected) {
+  TempDir dir;
+  PlyData data;
+  data.faces = {{0, 1, 2}, {0, 2, 4}};
+  const std::string binary = error_of([&] { (void)load_ply(dir.write("b.ply", binary_ply(data))); });
+  EXPECT_NE(binary.find("b.ply: face 1: vertex index 4 out of range (4 vertices)"), std::string::npos)
+      << binary;
+  const std::string ascii = error_of([&] { (void)load_ply(dir.write("a.ply", ascii_ply(data))); });
+  // Header 10 lines, 4 vertex lines, the second face on line 16.
+  EXPECT_NE(ascii.find("a.ply:16: face 1: vertex index 4 out of range"), std::string::npos) << ascii;
+  data.faces = {{0, 1, -1}};
+  const std::string negative = error_of([&] { (void)load_ply(dir.write("n.ply", binary_ply(data))); });
+  EXPECT_NE(negative.find("vertex index -1 out of range"), std::string::npos) << negative;
+}
+
+TEST(PlyLoader, NonFiniteCoordinateIsRejected) {
+  TempDir dir;
+  PlyData data;
+  data.points[2].y = std::numeric_limits<float>::quiet_NaN();
+  const std::string message = error_of([&] { (void)load_ply(dir.write("nan.ply", binary_ply(data))); });
+  EXPECT_NE(message.find("vertex 2: non-finite coordinate"), std::string::npos) << message;
+  data.points[2].y = std::numeric_limits<float>::infinity();
+  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("inf.ply", binary_ply(data))); }).find("non-finite"),
+            std::string::npos);
+  std::string ascii = ascii_ply(PlyData{});
+  ascii[ascii.find("end_header\n") + 11] = 'n';  // "0.000000" -> "n.000000"
+  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("t.ply", ascii)); }).find("t.ply:11: vertex 0: bad number"),
+            std::string::npos);
+}
+
+TEST(PlyLoader, EmptyMeshAndBadHeadersAreRejected) {
+  TempDir dir;
+  PlyData data;
+  data.faces.clear();
+  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("e.ply", binary_ply(data))); }).find("no triangles"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("x.ply", "solid x\n")); }).find("not a PLY file"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              (void)load_ply(dir.write("f.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"));
+            }).find("unknown PLY format"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              (void)load_ply(dir.write("p.ply",
+                                       "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
+                                       "property float y\nproperty float z\nend_header\n"));
+            }).find("no \"element face\""),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              (void)load_ply(dir.write("q.ply",
+                                       "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"));
+            }).find("q.ply:4: unknown property type"),
+            std::string::npos);
+}
+
+TEST(PlyLoader, DropsDegenerateFaces) {
+  TempDir dir;
+  PlyData data;
+  data.points.push_back({2, 0, 0});
+  data.faces = {{0, 1, 2}, {0, 1, 4}, {0, 0, 1}, {2, 1, 0}};
+  const Mesh mesh = load_ply(dir.write("d.ply", binary_ply(data))).mesh;
+  EXPECT_EQ(mesh.dropped_degenerate, 2u);
+  EXPECT_EQ(mesh.source_index, (std::vector<std::uint32_t>{0, 3}));
+}
+
+TEST(PlyLoader, SkipsOtherElementsAndProperties) {
+  TempDir dir;
+  const auto ply = dir.write("extra.ply",
+                             "ply\nformat ascii 1.0\nelement material 1\nproperty uchar red\n"
+                             "property list uchar float weights\n"
+                             "element vertex 3\nproperty double z\nproperty float y\nproperty short x\n"
+                             "element face 1\nproperty uchar flags\nproperty list ushort uint vertex_index\n"
+                             "end_header\n7 2 0.5 0.5\n0 0 0\n0 0 1\n0 1 0\n9 3 0 1 2\n");
+  const Mesh mesh = load_ply(ply).mesh;
+  EXPECT_EQ(mesh.positions[1], glm::vec3(1, 0, 0));
+  EXPECT_EQ(mesh.positions[2], glm::vec3(0, 1, 0));
+  EXPECT_EQ(mesh.triangles.size(), 1u);
+}
+
+// --- glTF -------------------------------------------------------------------------------
+
+TEST(GltfLoader, BakesNodeTransformsAndInstances) {
+  TempDir dir;
+  const MeshFile file = load_gltf(dir.write("two.gltf", test::small_gltf()));
+  const Mesh& mesh = file.mesh;
+  EXPECT_EQ(mesh.triangles.size() + mesh.dropped_degenerate, 4u);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.source_index, (std::vector<std::uint32_t>{0, 2}));
+  EXPECT_EQ(mesh.positions[mesh.triangles[0].y], glm::vec3(11, 0, 0));
+  EXPECT_EQ(mesh.positions[mesh.triangles[1].z], glm::vec3(0, 2, 5));
+  EXPECT_EQ(file.materials.at(mesh.material_ids[0]).diffuse, glm::vec3(0.2f, 0.4f, 0.6f));
+}
+
+TEST(GltfLoader, GarbageIsRejected) {
+  TempDir dir;
+  EXPECT_NE(error_of([&] { (void)load_gltf(dir.write("bad.glb", "glTF\x02\0\0\0garbage")); }).find("bad.glb"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { (void)load_gltf(dir.write("bad.gltf", "{\"asset\": 3}")); }).find("bad.gltf"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace rtc

@@ -1,0 +1,244 @@
+// Scene model: transforms, animation evaluation, bounds, automatic framing and the built-in
+// default scene.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <numbers>
+
+#include "common/math/camera.h"
+#include "common/scene/load.h"
+#include "test_files.h"
+
+namespace rtc {
+namespace {
+
+using test::TempDir;
+
+Transform rotated_about_y(float degrees, glm::vec3 translate = glm::vec3(0.0f)) {
+  Transform t;
+  t.translate = translate;
+  t.rotate = glm::angleAxis(glm::radians(degrees), glm::vec3(0, 1, 0));
+  return t;
+}
+
+void expect_near(const glm::vec3& actual, const glm::vec3& expected, float tolerance = 1e-5f) {
+  EXPECT_NEAR(actual.x, expected.x, tolerance);
+  EXPECT_NEAR(actual.y, expected.y, tolerance);
+  EXPECT_NEAR(actual.z, expected.z, tolerance);
+}
+
+/// A one-triangle scene with mesh and light tracks over frames 0..20.
+Scene animated_scene() {
+  Scene scene;
+  scene.materials.emplace_back();
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.triangles = {{0, 1, 2}};
+  mesh.material_ids = {0};
+  mesh.source_index = {0};
+  scene.meshes.push_back(mesh);
+  scene.meshes.push_back(mesh);
+  scene.meshes[1].world_from_object = glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, -7));
+  scene.lights = {PointLight{{0, 10, 0}, glm::vec3(1.0f)}};
+  scene.animation.frame_begin = 0;
+  scene.animation.frame_end = 20;
+  MeshTrack track;
+  track.mesh = 0;
+  track.keys = {TransformKey{10, rotated_about_y(0.0f, {2, 0, 0})}, TransformKey{20, rotated_about_y(90.0f, {4, 0, 0})}};
+  scene.animation.meshes.push_back(track);
+  LightTrack light;
+  light.light = 0;
+  light.keys = {LightKey{0, {0, 10, 0}}, LightKey{20, {20, 10, 0}}};
+  scene.animation.lights.push_back(light);
+  CameraKey first, second;
+  first.frame = 0;
+  second.frame = 20;
+  second.camera.eye = {0, 0, 3};
+  second.camera.vfov_deg = 65.0f;
+  scene.animation.camera = {first, second};
+  return scene;
+}
+
+TEST(Transform, MatrixAppliesScaleThenRotationThenTranslation) {
+  Transform t = rotated_about_y(90.0f, {1, 2, 3});
+  t.scale = {2, 3, 4};
+  const glm::vec3 p(t.matrix() * glm::vec4(1, 1, 1, 1));
+  // scale -> (2, 3, 4); 90 degrees about y maps x to -z and z to x -> (4, 3, -2); + (1, 2, 3).
+  expect_near(p, {5, 5, 1});
+  EXPECT_EQ(Transform{}.matrix(), glm::mat4(1.0f));
+}
+
+TEST(PoseAt, InterpolatesLinearlyBetweenKeys) {
+  const Scene scene = animated_scene();
+  const FramePose pose = pose_at(scene, 15);
+  EXPECT_EQ(pose.frame, 15);
+  expect_near(glm::vec3(pose.world_from_object[0][3]), {3, 0, 0});
+  EXPECT_EQ(pose.lights[0].position, glm::vec3(15, 10, 0));
+  const FramePose camera = pose_at(scene, 5);
+  EXPECT_EQ(camera.camera.eye, glm::vec3(0, 0, 1.5f));
+  EXPECT_EQ(camera.camera.vfov_deg, 50.0f);
+}
+
+TEST(PoseAt, SlerpsRotations) {
+  const Scene scene = animated_scene();
+  const glm::mat4 m = pose_at(scene, 15).world_from_object[0];
+  // Halfway between 0 and 90 degrees about y: x axis goes to (cos 45, 0, -sin 45).
+  const float h = std::sqrt(0.5f);
+  expect_near(glm::vec3(m[0]), {h, 0, -h});
+  expect_near(glm::vec3(m[1]), {0, 1, 0});
+}
+
+TEST(PoseAt, HoldsTheNearestKeyOutsideTheKeyedRange) {
+  const Scene scene = animated_scene();
+  // Frames before the first key (10) hold it, exactly.
+  EXPECT_EQ(pose_at(scene, 3).world_from_object[0], rotated_about_y(0.0f, {2, 0, 0}).matrix());
+  EXPECT_EQ(pose_at(scene, -50).world_from_object[0], pose_at(scene, 10).world_from_object[0]);
+  EXPECT_EQ(pose_at(scene, 99).world_from_object[0], pose_at(scene, 20).world_from_object[0]);
+  EXPECT_EQ(pose_at(scene, 99).lights[0].position, glm::vec3(20, 10, 0));
+  EXPECT_EQ(pose_at(scene, 99).camera.eye, glm::vec3(0, 0, 3));
+}
+
+TEST(PoseAt, MeshesWithoutTracksKeepTheirPlacement) {
+  Scene scene = animated_scene();
+  EXPECT_EQ(pose_at(scene, 7).world_from_object[1], scene.meshes[1].world_from_object);
+  scene.animation = Animation{};
+  const FramePose still = pose_at(scene, 7);
+  EXPECT_EQ(still.camera, scene.camera);
+  EXPECT_EQ(still.lights, scene.lights);
+  EXPECT_EQ(still.world_from_object[0], glm::mat4(1.0f));
+}
+
+TEST(Scene, BoundsAndTriangleCountUseThePlacementAtTheFirstFrame) {
+  const Scene scene = animated_scene();
+  EXPECT_EQ(scene.triangle_count(), 2u);
+  const Aabb box = scene.bounds();
+  // Mesh 0 at frame 0 holds its first key (translate x by 2); mesh 1 sits at z = -7.
+  expect_near(box.lo, {0, 0, -7});
+  expect_near(box.hi, {3, 1, 0});
+}
+
+TEST(FrameAutomatically, WholeBoundingSphereIsInView) {
+  TempDir dir;
+  const auto obj = dir.write("box.obj",
+                             "v -3 10 -1\nv 5 10 -1\nv 5 14 -1\nv -3 14 2\n"
+                             "f 1 2 3\nf 1 3 4\n");
+  const Scene scene = load_scene(obj);
+  EXPECT_EQ(scene.width, 512);
+  EXPECT_EQ(scene.height, 512);
+  ASSERT_EQ(scene.lights.size(), 1u);
+  EXPECT_EQ(scene.lights[0].color, glm::vec3(1.0f));
+  const Aabb box = scene.bounds();
+  expect_near(scene.camera.look_at, box.center());
+  const glm::dvec3 eye(scene.camera.eye);
+  const glm::dvec3 forward = glm::normalize(glm::dvec3(scene.camera.look_at) - eye);
+  const double radius = 0.5 * glm::length(glm::dvec3(box.extent()));
+  const double distance = glm::length(glm::dvec3(box.center()) - eye);
+  const double half_fov = glm::radians(double(scene.camera.vfov_deg)) / 2.0;
+  EXPECT_LT(std::asin(radius / distance), half_fov) << "bounding sphere inside the view cone";
+  for (int corner = 0; corner < 8; ++corner) {
+    const glm::dvec3 p((corner & 1) ? box.hi.x : box.lo.x, (corner & 2) ? box.hi.y : box.lo.y,
+                       (corner & 4) ? box.hi.z : box.lo.z);
+    EXPECT_LT(std::acos(glm::dot(glm::normalize(p - eye), forward)), half_fov);
+  }
+  EXPECT_NO_THROW(CameraRays(scene.camera, scene.width, scene.height));
+}
+
+TEST(FrameAutomatically, KeepsExistingLights) {
+  Scene scene = animated_scene();
+  frame_automatically(scene);
+  EXPECT_EQ(scene.lights.size(), 1u);
+  scene.lights.clear();
+  frame_automatically(scene);
+  EXPECT_EQ(scene.lights.size(), 1u);
+}
+
+TEST(DefaultScene, TriangleCountIsInRange) {
+  const Scene scene = default_scene();
+  EXPECT_GE(scene.triangle_count(), 30000u);
+  EXPECT_LE(scene.triangle_count(), 60000u);
+  EXPECT_EQ(scene.width, 640);
+  EXPECT_EQ(scene.height, 480);
+  EXPECT_EQ(scene.lights.size(), 2u);
+  EXPECT_TRUE(scene.source.empty());
+  bool any_reflective = false;
+  for (const Material& m : scene.materials) any_reflective = any_reflective || m.reflective;
+  EXPECT_TRUE(any_reflective);
+  for (const Mesh& mesh : scene.meshes) {
+    EXPECT_EQ(mesh.dropped_degenerate, 0u) << mesh.name;
+    EXPECT_EQ(mesh.material_ids.size(), mesh.triangles.size());
+    for (const std::uint32_t id : mesh.material_ids) ASSERT_LT(id, scene.materials.size());
+  }
+  EXPECT_NO_THROW(CameraRays(scene.camera, scene.width, scene.height));
+}
+
+TEST(DefaultScene, IsTheSameBitsEveryCall) {
+  const Scene a = default_scene();
+  const Scene b = default_scene();
+  ASSERT_EQ(a.meshes.size(), b.meshes.size());
+  for (std::size_t m = 0; m < a.meshes.size(); ++m) {
+    const Mesh& x = a.meshes[m];
+    const Mesh& y = b.meshes[m];
+    ASSERT_EQ(x.positions.size(), y.positions.size());
+    EXPECT_EQ(std::memcmp(x.positions.data(), y.positions.data(), x.positions.size() * sizeof(glm::vec3)), 0);
+    EXPECT_EQ(x.normals, y.normals);
+    EXPECT_EQ(x.triangles, y.triangles);
+    EXPECT_EQ(x.material_ids, y.material_ids);
+    EXPECT_EQ(x.world_from_object, y.world_from_object);
+  }
+  EXPECT_EQ(a.materials, b.materials);
+  EXPECT_EQ(a.camera, b.camera);
+  EXPECT_EQ(a.lights, b.lights);
+  EXPECT_EQ(pose_at(a, 7).world_from_object, pose_at(b, 7).world_from_object);
+}
+
+TEST(DefaultScene, SurfacesFaceOutward) {
+  const Scene scene = default_scene();
+  for (const Mesh& mesh : scene.meshes) {
+    if (mesh.normals.empty()) continue;
+    for (const glm::uvec3& t : mesh.triangles) {
+      const glm::dvec3 a(mesh.positions[t.x]), b(mesh.positions[t.y]), c(mesh.positions[t.z]);
+      const glm::dvec3 n = glm::cross(b - a, c - a);
+      ASSERT_GT(glm::dot(n, glm::dvec3(mesh.normals[t.x] + mesh.normals[t.y] + mesh.normals[t.z])), 0.0)
+          << mesh.name << ": geometric and shading normals disagree";
+    }
+  }
+  // Floor and boxes have no normals: the floor faces up, each box (24 vertices) faces away
+  // from its centre.
+  for (const Mesh& mesh : scene.meshes) {
+    if (!mesh.normals.empty()) continue;
+    for (const glm::uvec3& t : mesh.triangles) {
+      const glm::dvec3 a(mesh.positions[t.x]), b(mesh.positions[t.y]), c(mesh.positions[t.z]);
+      const glm::dvec3 n = glm::cross(b - a, c - a);
+      if (mesh.name == "floor") {
+        EXPECT_GT(n.y, 0.0);
+        continue;
+      }
+      glm::dvec3 centre(0.0);
+      const std::uint32_t first = t.x / 24 * 24;
+      for (std::uint32_t i = first; i < first + 24; ++i) centre += glm::dvec3(mesh.positions[i]) / 24.0;
+      EXPECT_GT(glm::dot(n, (a + b + c) / 3.0 - centre), 0.0) << mesh.name;
+    }
+  }
+}
+
+TEST(DefaultScene, AnimationMovesOneSphereOnly) {
+  const Scene scene = default_scene();
+  EXPECT_EQ(scene.animation.frame_begin, 0);
+  EXPECT_EQ(scene.animation.frame_end, 23);
+  EXPECT_TRUE(scene.animation.camera.empty());
+  ASSERT_EQ(scene.animation.meshes.size(), 1u);
+  const FramePose first = pose_at(scene, 0);
+  const FramePose middle = pose_at(scene, 12);
+  int moved = 0;
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (first.world_from_object[m] != middle.world_from_object[m]) ++moved;
+    EXPECT_EQ(first.world_from_object[m], scene.meshes[m].world_from_object) << "frame 0 is the static placement";
+  }
+  EXPECT_EQ(moved, 1);
+  EXPECT_EQ(first.camera, middle.camera);
+  EXPECT_EQ(first.lights, middle.lights);
+}
+
+}  // namespace
+}  // namespace rtc

@@ -1,0 +1,156 @@
+// rtc-render: the local frame-dump CLI. Renders frames of a scene (or the built-in one) on all
+// cores and writes them as EXR/PNG through OpenImageIO.
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include "common/base/error.h"
+#include "common/base/isa.h"
+#include "common/base/log.h"
+#include "common/base/progress.h"
+#include "common/base/timer.h"
+#include "common/image/image.h"
+#include "common/render/renderer.h"
+#include "common/scene/load.h"
+
+namespace {
+
+struct FrameRange {
+  int first = 0;
+  int last = 0;
+};
+
+// "A-B", "A" or "A-A"; both inclusive.
+FrameRange parse_frames(const std::string& text) {
+  FrameRange r;
+  try {
+    const std::size_t dash = text.find('-', 1);
+    std::size_t used = 0;
+    r.first = std::stoi(text.substr(0, dash), &used);
+    if (used != (dash == std::string::npos ? text.size() : dash)) throw std::invalid_argument(text);
+    r.last = r.first;
+    if (dash != std::string::npos) {
+      r.last = std::stoi(text.substr(dash + 1), &used);
+      if (used != text.size() - dash - 1) throw std::invalid_argument(text);
+    }
+  } catch (const std::exception&) {
+    throw rtc::Error("--frames: expected A-B or A, got \"" + text + "\"");
+  }
+  if (r.last < r.first) throw rtc::Error("--frames: " + text + " is an empty range");
+  return r;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"rtc-render: render frames of a scene to image files (EXR, PNG) on this machine"};
+  std::string scene_path;
+  std::string frames_text;
+  std::string out_pattern;
+  int width = 0, height = 0, threads = 0, spp = 0, tile = 32, max_depth = -1;
+  float min_weight = -1.0f;
+  std::string isa_text, log_level = "info";
+  bool exr_float = false, single_rays = false;
+  app.add_option("scene", scene_path,
+                 "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
+                 "omitted: the built-in default scene");
+  app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
+  app.add_option("--out", out_pattern,
+                 "output file pattern; #### is the zero-padded frame number; the extension picks the "
+                 "format (.exr, .png) (default: out/<scene>_####.png)");
+  app.add_option("--width", width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
+  app.add_option("--height", height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));
+  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--spp", spp, "samples per pixel (default: the scene's, normally 1)")->check(CLI::Range(1, 4096));
+  app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
+  app.add_option("--max-depth", max_depth, "reflection bounces (default: the scene's, normally 5)")
+      ->check(CLI::Range(0, 64));
+  app.add_option("--min-weight", min_weight, "ray-weight cutoff for reflections (default: the scene's, 0.01)")
+      ->check(CLI::Range(0.0f, 1.0f));
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
+  app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of 2x2 packets (same pixels)");
+  app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+  CLI11_PARSE(app, argc, argv);
+
+  rtc::init_logging(log_level);
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<std::size_t>(threads));
+  }
+
+  rtc::Timer load_timer;
+  rtc::Scene scene = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(scene_path);
+  if (width > 0) scene.width = width;
+  if (height > 0) scene.height = height;
+  if (spp > 0) scene.settings.spp = spp;
+  if (max_depth >= 0) scene.settings.max_depth = max_depth;
+  if (min_weight >= 0.0f) scene.settings.min_weight = min_weight;
+  spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
+               scene_path.empty() ? "(built-in default)" : scene_path, scene.meshes.size(),
+               scene.triangle_count(), scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
+
+  FrameRange frames{scene.animation.frame_begin, scene.animation.frame_end};
+  if (!frames_text.empty()) frames = parse_frames(frames_text);
+  const bool multiple = frames.last > frames.first;
+  if (out_pattern.empty()) {
+    out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");
+    std::filesystem::create_directories("out");
+  }
+
+  rtc::RenderOptions options;
+  if (!isa_text.empty()) options.isa = rtc::parse_isa(isa_text);
+  options.packets = !single_rays;
+  rtc::Renderer renderer(std::move(scene), options);
+  spdlog::info("kernels: {} ({}), {} threads", rtc::isa_name(renderer.isa()),
+               single_rays ? "single rays" : "2x2 packets",
+               threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency()));
+
+  rtc::ImageWriteOptions write_options;
+  write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  for (int f = frames.first; f <= frames.last; ++f) {
+    rtc::Timer frame_timer;
+    const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(f);
+    const double prepare_ms = frame_timer.elapsed_ms();
+    const auto pixels = static_cast<std::uint64_t>(state->width) * static_cast<std::uint64_t>(state->height);
+    rtc::ProgressBar progress(pixels, "frame " + std::to_string(f), "px");
+    rtc::TileRayCounts counts;
+    const rtc::Image image = renderer.render_frame(*state, tile, tty ? &progress : nullptr, &counts);
+    progress.finish();
+    const double render_ms = frame_timer.elapsed_ms() - prepare_ms;
+    const std::string path = rtc::expand_frame_pattern(out_pattern, f, multiple);
+    rtc::write_image(path, image, write_options);
+    const double seconds = std::max(render_ms, 1e-3) / 1000.0;
+    std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms, render %.0f ms, %.2f M rays/s "
+                "(%llu primary, %llu shadow, %llu reflection)\n",
+                f, path.c_str(), state->width, state->height, frame_timer.elapsed_ms() / 1000.0, prepare_ms,
+                render_ms, static_cast<double>(counts.total()) / seconds / 1e6,
+                static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
+                static_cast<unsigned long long>(counts.reflection));
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const rtc::Error& e) {
+    std::fprintf(stderr, "rtc-render: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rtc-render: error: %s\n", e.what());
+    return 1;
+  }
+}
