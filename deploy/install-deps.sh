@@ -8,7 +8,7 @@ packages=(
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libassimp-dev libtinyobjloader-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libembree-dev
+  libembree-dev python3
 )
 
 missing=()

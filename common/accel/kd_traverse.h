@@ -94,18 +94,17 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   while (!active.lane(lead)) ++lead;
   int sign[3];
   PacketVec3<N> inv_dir;
-  inv_dir.x = vfloat<N>(1.0f) / ray.dir.x;
-  inv_dir.y = vfloat<N>(1.0f) / ray.dir.y;
-  inv_dir.z = vfloat<N>(1.0f) / ray.dir.z;
-  vfloat<N>* inv[3] = {&inv_dir.x, &inv_dir.y, &inv_dir.z};
+  inv_dir[0] = vfloat<N>(1.0f) / ray.dir[0];
+  inv_dir[1] = vfloat<N>(1.0f) / ray.dir[1];
+  inv_dir[2] = vfloat<N>(1.0f) / ray.dir[2];
 
   vfloat<N> near = ray.t_min, far = ray.t_max;
   for (int axis = 0; axis < 3; ++axis) {
     sign[axis] = sign_bit(ray.dir[axis]).lane(lead) ? 1 : 0;
     const float entry = sign[axis] ? box.hi[axis] : box.lo[axis];
     const float exit = sign[axis] ? box.lo[axis] : box.hi[axis];
-    const vfloat<N> t_entry = (vfloat<N>(entry) - ray.org[axis]) * *inv[axis];
-    const vfloat<N> t_exit = (vfloat<N>(exit) - ray.org[axis]) * *inv[axis];
+    const vfloat<N> t_entry = (vfloat<N>(entry) - ray.org[axis]) * inv_dir[axis];
+    const vfloat<N> t_exit = (vfloat<N>(exit) - ray.org[axis]) * inv_dir[axis];
     near = max(t_entry, near);  // NaN (origin on the face, parallel ray) keeps near
     far = min(t_exit, far);
   }
@@ -126,7 +125,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     const KdNode node = nodes[index];
     if (!node.is_leaf()) {
       const int axis = node.axis();
-      const vfloat<N> t_split = (vfloat<N>(node.split) - ray.org[axis]) * *inv[axis];
+      const vfloat<N> t_split = (vfloat<N>(node.split) - ray.org[axis]) * inv_dir[axis];
       const std::uint32_t near_child = node.left() + static_cast<std::uint32_t>(sign[axis]);
       const std::uint32_t far_child = node.left() + static_cast<std::uint32_t>(sign[axis] ^ 1);
       const vfloat<N> near_end = min(t_split, far);     // NaN: far
@@ -183,8 +182,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
 template <int N>
 inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
   RayPacket<1> r;
-  r.org = PacketVec3<1>{p.org.x.lane(i), p.org.y.lane(i), p.org.z.lane(i)};
-  r.dir = PacketVec3<1>{p.dir.x.lane(i), p.dir.y.lane(i), p.dir.z.lane(i)};
+  r.org = PacketVec3<1>{p.org[0].lane(i), p.org[1].lane(i), p.org[2].lane(i)};
+  r.dir = PacketVec3<1>{p.dir[0].lane(i), p.dir[1].lane(i), p.dir[2].lane(i)};
   r.t_min = p.t_min.lane(i);
   r.t_max = p.t_max.lane(i);
   return r;
@@ -198,9 +197,9 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
   if (tree.empty() || none(active)) return;
   if constexpr (N > 1) {
     const unsigned lanes = bits(active);
-    const unsigned sx = bits(sign_bit(ray.dir.x)) & lanes;
-    const unsigned sy = bits(sign_bit(ray.dir.y)) & lanes;
-    const unsigned sz = bits(sign_bit(ray.dir.z)) & lanes;
+    const unsigned sx = bits(sign_bit(ray.dir[0])) & lanes;
+    const unsigned sy = bits(sign_bit(ray.dir[1])) & lanes;
+    const unsigned sz = bits(sign_bit(ray.dir[2])) & lanes;
     const bool coherent = (sx == 0 || sx == lanes) && (sy == 0 || sy == lanes) && (sz == 0 || sz == lanes);
     if (!coherent) {
       for (int i = 0; i < N; ++i) {

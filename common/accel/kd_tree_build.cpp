@@ -183,30 +183,38 @@ class Builder {
     }
     for (int axis = 0; axis < 3; ++axis) {
       const std::vector<Event>& ev = events[axis];
+      // Count first so each child list is allocated once at its exact size.
+      std::size_t n_left = 0, n_right = 0;
+      for (const Event& e : ev) {
+        const std::uint8_t s = side[e.tri()];
+        n_left += s != kRight;
+        n_right += s != kLeft;
+      }
       std::vector<Event>& l = left[axis];
       std::vector<Event>& r = right[axis];
-      l.reserve(ev.size());
-      r.reserve(ev.size());
+      l.resize(n_left);
+      r.resize(n_right);
+      Event* lp = l.data();
+      Event* rp = r.data();
+      const bool split_axis = axis == split.axis;
       for (const Event& e : ev) {
         switch (side[e.tri()]) {
           case kLeft:
-            l.push_back(e);
+            *lp++ = e;
             break;
           case kRight:
-            r.push_back(e);
+            *rp++ = e;
             break;
           default:
-            if (axis == split.axis) {
-              l.push_back(Event{std::min(e.pos, split.pos), e.code});
-              r.push_back(Event{std::max(e.pos, split.pos), e.code});
+            if (split_axis) {
+              *lp++ = Event{std::min(e.pos, split.pos), e.code};
+              *rp++ = Event{std::max(e.pos, split.pos), e.code};
             } else {
-              l.push_back(e);
-              r.push_back(e);
+              *lp++ = e;
+              *rp++ = e;
             }
         }
       }
-      l.shrink_to_fit();
-      r.shrink_to_fit();
     }
   }
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "common/base/error.h"
+#include "common/math/det_math.h"
 
 namespace rtc {
 
@@ -24,7 +25,8 @@ CameraRays::CameraRays(const Camera& camera, int width, int height) : width_(wid
   if (!(glm::length(side) > 1e-12)) throw Error("camera: up is parallel to the view direction");
   right_ = glm::normalize(side);
   up2_ = glm::cross(right_, forward_);
-  h_ = std::tan(camera.vfov_deg * (3.14159265358979323846 / 180.0) / 2.0);
+  // det_tan, not std::tan: the same rays on every CPU (see det_math.h).
+  h_ = det_tan(camera.vfov_deg * (3.14159265358979323846 / 180.0) / 2.0);
 }
 
 Ray CameraRays::ray(int x, int y, double sub_x, double sub_y) const {

@@ -11,6 +11,7 @@
 #include "common/accel/kd_traverse.h"
 #include "common/accel/trace.h"
 #include "common/image/image.h"
+#include "common/math/det_math.h"
 #include "common/math/ray_offset.h"
 #include "common/render/frame_state.h"
 #include "common/render/render_kernels.h"
@@ -80,6 +81,31 @@ struct Lanes {
   V3 color[N];   // radiance accumulated, already weighted
 };
 
+/// Rays assembled lane by lane in plain arrays, then loaded into a packet in one go.
+template <int N>
+struct RayLanes {
+  float org[3][N] = {};
+  float dir[3][N] = {};
+  void set(int i, V3 o, V3 d) {
+    org[0][i] = o.x;
+    org[1][i] = o.y;
+    org[2][i] = o.z;
+    dir[0][i] = d.x;
+    dir[1][i] = d.y;
+    dir[2][i] = d.z;
+  }
+  [[nodiscard]] RayPacket<N> packet(float t_min, float t_max) const {
+    RayPacket<N> p;
+    for (int a = 0; a < 3; ++a) {
+      p.org[a] = vfloat<N>::load(org[a]);
+      p.dir[a] = vfloat<N>::load(dir[a]);
+    }
+    p.t_min = vfloat<N>(t_min);
+    p.t_max = vfloat<N>(t_max);
+    return p;
+  }
+};
+
 /// First-hit data the image keeps besides colour (sample 0 only).
 struct Aov {
   float depth = std::numeric_limits<float>::infinity();
@@ -92,28 +118,38 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(bits(active)));
   HitPacket<N> hit{ray.t_max, vfloat<N>(0.0f), vfloat<N>(0.0f), vint<N>(-1)};
   intersect<N>(fs.tree, ray, active, hit);
+  float hit_t[N], hit_beta[N], hit_gamma[N], org[3][N], dir[3][N];
+  std::int32_t hit_prim[N];
+  hit.t.store(hit_t);
+  hit.beta.store(hit_beta);
+  hit.gamma.store(hit_gamma);
+  hit.prim.store(hit_prim);
+  for (int a = 0; a < 3; ++a) {
+    ray.org[a].store(org[a]);
+    ray.dir[a].store(dir[a]);
+  }
+  const unsigned active_lanes = bits(active);
 
   SurfaceHit surf[N];
   V3 local[N];
   unsigned hit_lanes = 0;
   for (int i = 0; i < N; ++i) {
-    if (!active.lane(i)) continue;
-    const std::int32_t prim = hit.prim.lane(i);
+    if (!((active_lanes >> i) & 1u)) continue;
+    const std::int32_t prim = hit_prim[i];
     if (prim < 0) {
       lanes.color[i] = lanes.color[i] + lanes.weight[i] * v3(fs.background);
       continue;
     }
     hit_lanes |= 1u << i;
-    const V3 dir{ray.dir.x.lane(i), ray.dir.y.lane(i), ray.dir.z.lane(i)};
-    surf[i] = surface_at(fs, dir, static_cast<std::uint32_t>(prim), hit.beta.lane(i), hit.gamma.lane(i));
+    const V3 d{dir[0][i], dir[1][i], dir[2][i]};
+    surf[i] = surface_at(fs, d, static_cast<std::uint32_t>(prim), hit_beta[i], hit_gamma[i]);
     const Material& m = *surf[i].material;
     local[i] = v3(fs.ambient) * v3(m.diffuse) + v3(m.emission);
     if (aov != nullptr) {
       // The depth channel gets the distance recomputed in double (exact for grazing rays too).
       const glm::uvec3 tri = fs.triangles[static_cast<std::uint32_t>(prim)];
-      aov[i].depth = refined_distance(glm::vec3(ray.org.x.lane(i), ray.org.y.lane(i), ray.org.z.lane(i)),
-                                      glm::vec3(dir.x, dir.y, dir.z), fs.positions[tri.x], fs.positions[tri.y],
-                                      fs.positions[tri.z], hit.t.lane(i));
+      aov[i].depth = refined_distance(glm::vec3(org[0][i], org[1][i], org[2][i]), glm::vec3(d.x, d.y, d.z),
+                                      fs.positions[tri.x], fs.positions[tri.y], fs.positions[tri.z], hit_t[i]);
       aov[i].normal = surf[i].normal;
     }
   }
@@ -122,7 +158,7 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
   // One packet of shadow rays per light (Wald et al. 2001, section 3).
   for (const PointLight& light : fs.lights) {
     const V3 lp = v3(light.position);
-    RayPacket<N> shadow;
+    RayLanes<N> shadow;
     unsigned want = 0;
     V3 to_light[N];
     for (int i = 0; i < N; ++i) {
@@ -134,20 +170,14 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
       to_light[i] = normalize_or(d, s.normal);
       if (!(dot(to_light[i], s.normal) > 0.0f)) continue;
       want |= 1u << i;
-      shadow.org.x.set_lane(i, s.point.x);
-      shadow.org.y.set_lane(i, s.point.y);
-      shadow.org.z.set_lane(i, s.point.z);
-      shadow.dir.x.set_lane(i, d.x);
-      shadow.dir.y.set_lane(i, d.y);
-      shadow.dir.z.set_lane(i, d.z);
+      shadow.set(i, s.point, d);
     }
     if (want == 0) continue;
     counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
-    shadow.t_min = vfloat<N>(0.0f);
-    shadow.t_max = vfloat<N>(1.0f);  // the light itself sits at t = 1
-    const vbool<N> blocked = occluded<N>(fs.tree, shadow, vbool<N>::from_bits(want));
+    // The light itself sits at t = 1.
+    const unsigned blocked = bits(occluded<N>(fs.tree, shadow.packet(0.0f, 1.0f), vbool<N>::from_bits(want)));
     for (int i = 0; i < N; ++i) {
-      if (!((want >> i) & 1u) || blocked.lane(i)) continue;
+      if (!((want >> i) & 1u) || ((blocked >> i) & 1u)) continue;
       const SurfaceHit& s = surf[i];
       const Material& m = *s.material;
       const float n_dot_l = dot(s.normal, to_light[i]);
@@ -155,14 +185,14 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
       if (max3(v3(m.specular)) > 0.0f) {
         const V3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
         const float r_dot_v = dot(r, s.view);
-        if (r_dot_v > 0.0f) contrib = contrib + v3(m.specular) * std::pow(r_dot_v, m.shininess);
+        if (r_dot_v > 0.0f) contrib = contrib + v3(m.specular) * det_powf(r_dot_v, m.shininess);
       }
       local[i] = local[i] + v3(light.color) * contrib;
     }
   }
 
   // Mirror reflections, as one packet per bounce, cut off by depth and by ray weight.
-  RayPacket<N> refl;
+  RayLanes<N> refl;
   Lanes<N> next;
   unsigned bounce = 0;
   for (int i = 0; i < N; ++i) {
@@ -180,17 +210,11 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
     bounce |= 1u << i;
     next.weight[i] = w;
     next.color[i] = V3{};
-    refl.org.x.set_lane(i, s.point.x);
-    refl.org.y.set_lane(i, s.point.y);
-    refl.org.z.set_lane(i, s.point.z);
-    refl.dir.x.set_lane(i, r.x);
-    refl.dir.y.set_lane(i, r.y);
-    refl.dir.z.set_lane(i, r.z);
+    refl.set(i, s.point, r);
   }
   if (bounce == 0) return;
-  refl.t_min = vfloat<N>(0.0f);
-  refl.t_max = vfloat<N>(std::numeric_limits<float>::infinity());
-  trace_radiance<N>(fs, refl, vbool<N>::from_bits(bounce), depth + 1, next, nullptr, counts);
+  trace_radiance<N>(fs, refl.packet(0.0f, std::numeric_limits<float>::infinity()), vbool<N>::from_bits(bounce),
+                    depth + 1, next, nullptr, counts);
   for (int i = 0; i < N; ++i) {
     if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
   }
@@ -225,19 +249,13 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
       for (int s = 0; s < spp; ++s) {
         double sx, sy;
         sample_offset(s, sx, sy);
-        RayPacket<N> ray;
+        RayLanes<N> primary;
         for (int i = 0; i < N; ++i) {
           if (!((valid >> i) & 1u)) continue;
           const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
-          ray.org.x.set_lane(i, r.origin.x);
-          ray.org.y.set_lane(i, r.origin.y);
-          ray.org.z.set_lane(i, r.origin.z);
-          ray.dir.x.set_lane(i, r.dir.x);
-          ray.dir.y.set_lane(i, r.dir.y);
-          ray.dir.z.set_lane(i, r.dir.z);
+          primary.set(i, v3(r.origin), v3(r.dir));
         }
-        ray.t_min = vfloat<N>(0.0f);
-        ray.t_max = vfloat<N>(std::numeric_limits<float>::infinity());
+        const RayPacket<N> ray = primary.packet(0.0f, std::numeric_limits<float>::infinity());
         Lanes<N> lanes;
         for (int i = 0; i < N; ++i) lanes.weight[i] = V3{1, 1, 1};
         trace_radiance<N>(fs, ray, vbool<N>::from_bits(valid), 0, lanes, s == 0 ? aov : nullptr, counts);

@@ -98,11 +98,12 @@ void append_box(MeshBuilder& builder, glm::vec3 lo, glm::vec3 hi) {
   }
 }
 
-Transform placed(glm::vec3 translate, float degrees_about_y = 0.0f, glm::vec3 scale = glm::vec3(1.0f)) {
+Transform placed(glm::vec3 translate, float degrees_about_y = 0.0f,
+                 glm::vec3 scale = glm::vec3(1.0f)) {
   Transform t;
   t.translate = translate;
-  const glm::dquat q = glm::angleAxis(glm::radians(static_cast<double>(degrees_about_y)),
-                                      glm::dvec3(0.0, 1.0, 0.0));
+  const glm::dquat q =
+      glm::angleAxis(glm::radians(static_cast<double>(degrees_about_y)), glm::dvec3(0.0, 1.0, 0.0));
   t.rotate = glm::quat(static_cast<float>(q.w), static_cast<float>(q.x), static_cast<float>(q.y),
                        static_cast<float>(q.z));
   t.scale = scale;
@@ -126,27 +127,35 @@ Scene default_scene() {
   scene.ambient = glm::vec3(0.08f);
   scene.materials.emplace_back();
 
-  const Material light_tile = make_material("floor_light", {0.85f, 0.85f, 0.80f}, glm::vec3(0.0f), 32.0f, false);
-  const Material dark_tile = make_material("floor_dark", {0.12f, 0.12f, 0.16f}, glm::vec3(0.0f), 32.0f, false);
+  const Material light_tile =
+      make_material("floor_light", {0.85f, 0.85f, 0.80f}, glm::vec3(0.0f), 32.0f, false);
+  const Material dark_tile =
+      make_material("floor_dark", {0.12f, 0.12f, 0.16f}, glm::vec3(0.0f), 32.0f, false);
   const Material mirror = make_material("mirror", glm::vec3(0.05f), glm::vec3(0.9f), 500.0f, true);
-  const Material gold = make_material("gold", {0.35f, 0.25f, 0.08f}, {0.65f, 0.55f, 0.25f}, 200.0f, true);
-  const Material blue = make_material("blue_glaze", {0.10f, 0.20f, 0.60f}, glm::vec3(0.3f), 100.0f, true);
-  const Material red = make_material("red_plastic", {0.70f, 0.10f, 0.08f}, glm::vec3(0.25f), 60.0f, false);
-  const Material green = make_material("green_matte", {0.15f, 0.55f, 0.20f}, glm::vec3(0.0f), 32.0f, false);
-  const Material white = make_material("white_matte", glm::vec3(0.75f), glm::vec3(0.0f), 32.0f, false);
+  const Material gold =
+      make_material("gold", {0.35f, 0.25f, 0.08f}, {0.65f, 0.55f, 0.25f}, 200.0f, true);
+  const Material blue =
+      make_material("blue_glaze", {0.10f, 0.20f, 0.60f}, glm::vec3(0.3f), 100.0f, true);
+  const Material red =
+      make_material("red_plastic", {0.70f, 0.10f, 0.08f}, glm::vec3(0.25f), 60.0f, false);
+  const Material green =
+      make_material("green_matte", {0.15f, 0.55f, 0.20f}, glm::vec3(0.0f), 32.0f, false);
+  const Material white =
+      make_material("white_matte", glm::vec3(0.75f), glm::vec3(0.0f), 32.0f, false);
 
   add(scene, make_floor(10), {light_tile, dark_tile}, Transform{});
   // 24 x 24 quads per cube face: 6,912 triangles per sphere.
   add(scene, make_sphere("mirror_sphere", 24), {mirror}, placed({-2.3f, 1.0f, -0.5f}));
-  add(scene, make_sphere("blue_sphere", 24), {blue}, placed({0.4f, 0.7f, -2.6f}, 0.0f, glm::vec3(0.7f)));
-  const std::uint32_t moving =
-      add(scene, make_sphere("gold_sphere", 24), {gold}, placed({2.4f, 0.8f, -0.2f}, 0.0f, glm::vec3(0.8f)));
+  add(scene, make_sphere("blue_sphere", 24), {blue},
+      placed({0.4f, 0.7f, -2.6f}, 0.0f, glm::vec3(0.7f)));
+  const std::uint32_t moving = add(scene, make_sphere("gold_sphere", 24), {gold},
+                                   placed({2.4f, 0.8f, -0.2f}, 0.0f, glm::vec3(0.8f)));
   add(scene, make_torus(0.9, 0.3, 128, 64), {red}, placed({0.0f, 0.3f, 1.6f}, 20.0f));
   {
     MeshBuilder builder("boxes", kSource);
     append_box(builder, {-0.5f, 0.0f, -0.5f}, {0.5f, 1.0f, 0.5f});
     append_box(builder, {-0.4f, 1.0f, -0.4f}, {0.4f, 1.6f, 0.4f});
-    add(scene, builder.finish(), {green}, placed({-3.6f, 0.0f, 2.2f}, 30.0f));
+    add(scene, builder.finish(), {green}, placed({-2.9f, 0.0f, 1.8f}, 30.0f));
   }
   {
     MeshBuilder builder("pillar", kSource);

@@ -22,7 +22,8 @@ class FileBytes {
   FileBytes& operator=(FileBytes&& other) noexcept;
 
   [[nodiscard]] std::string_view view() const {
-    return map_ != nullptr ? std::string_view(static_cast<const char*>(map_), size_) : std::string_view(copy_);
+    return map_ != nullptr ? std::string_view(static_cast<const char*>(map_), size_)
+                           : std::string_view(copy_);
   }
   [[nodiscard]] std::size_t size() const { return view().size(); }
 

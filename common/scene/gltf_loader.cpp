@@ -93,8 +93,9 @@ class GltfReader {
     const glm::dmat4 world = parent * to_glm(node.mTransformation);
     for (unsigned i = 0; i < node.mNumMeshes; ++i) {
       if (node.mMeshes[i] >= scene_->mNumMeshes) {
-        throw_at(file_, 0, std::string("glTF: node \"") + node.mName.C_Str() +
-                               "\" references a missing mesh");
+        throw_at(
+            file_, 0,
+            std::string("glTF: node \"") + node.mName.C_Str() + "\" references a missing mesh");
       }
       add_instance(*scene_->mMeshes[node.mMeshes[i]], world, node);
     }
@@ -110,9 +111,10 @@ class GltfReader {
       const aiVector3D& p = mesh.mVertices[v];
       const glm::vec3 position(world * glm::dvec4(p.x, p.y, p.z, 1.0));
       if (!std::isfinite(position.x) || !std::isfinite(position.y) || !std::isfinite(position.z)) {
-        throw_at(file_, 0, std::string("glTF: mesh \"") + mesh.mName.C_Str() + "\" in node \"" +
-                               node.mName.C_Str() + "\": vertex " + std::to_string(v) +
-                               " has a non-finite position");
+        throw_at(file_, 0,
+                 std::string("glTF: mesh \"") + mesh.mName.C_Str() + "\" in node \"" +
+                     node.mName.C_Str() + "\": vertex " + std::to_string(v) +
+                     " has a non-finite position");
       }
       if (!normals) {
         builder_.add_vertex(position);
@@ -125,18 +127,17 @@ class GltfReader {
       }
       builder_.add_vertex(position, normal);
     }
-    builder_.set_material(mesh.mMaterialIndex < material_of_.size()
-                              ? material_of_[mesh.mMaterialIndex]
-                              : 0);
+    builder_.set_material(
+        mesh.mMaterialIndex < material_of_.size() ? material_of_[mesh.mMaterialIndex] : 0);
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
       const aiFace& face = mesh.mFaces[f];
       if (face.mNumIndices < 3) continue;  // points and lines are not surfaces
       for (unsigned k = 0; k < face.mNumIndices; ++k) {
         if (face.mIndices[k] >= mesh.mNumVertices) {
-          throw_at(file_, 0, std::string("glTF: mesh \"") + mesh.mName.C_Str() + "\": face " +
-                                 std::to_string(f) + " index " +
-                                 std::to_string(face.mIndices[k]) + " out of range (" +
-                                 std::to_string(mesh.mNumVertices) + " vertices)");
+          throw_at(file_, 0,
+                   std::string("glTF: mesh \"") + mesh.mName.C_Str() + "\": face " +
+                       std::to_string(f) + " index " + std::to_string(face.mIndices[k]) +
+                       " out of range (" + std::to_string(mesh.mNumVertices) + " vertices)");
         }
       }
       for (unsigned k = 1; k + 1 < face.mNumIndices; ++k) {

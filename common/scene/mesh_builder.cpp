@@ -31,6 +31,9 @@ std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position) {
 }
 
 std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position, const glm::vec3& normal) {
+  if (mesh_.positions.size() >= std::numeric_limits<std::uint32_t>::max()) {
+    throw_at(mesh_.source, 0, "more than 2^32-1 vertices");
+  }
   if (!has_normals_) {
     // Vertices added before the first normal get "no normal".
     mesh_.normals.assign(mesh_.positions.size(), glm::vec3(0.0f));
@@ -38,9 +41,6 @@ std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position, const glm::vec3
   }
   const float length = glm::length(normal);
   mesh_.normals.push_back(length > 0.0f ? normal / length : glm::vec3(0.0f));
-  if (mesh_.positions.size() >= std::numeric_limits<std::uint32_t>::max()) {
-    throw_at(mesh_.source, 0, "more than 2^32-1 vertices");
-  }
   mesh_.positions.push_back(position);
   return static_cast<std::uint32_t>(mesh_.positions.size() - 1);
 }
@@ -57,8 +57,7 @@ std::uint32_t MeshBuilder::add_vertices(const void* packed_xyz, std::size_t coun
 }
 
 void MeshBuilder::add_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-  RTC_DCHECK(a < mesh_.positions.size() && b < mesh_.positions.size() &&
-                 c < mesh_.positions.size(),
+  RTC_DCHECK(a < mesh_.positions.size() && b < mesh_.positions.size() && c < mesh_.positions.size(),
              "triangle index out of range");
   if (next_source_index_ >= std::numeric_limits<std::uint32_t>::max()) {
     throw_at(mesh_.source, 0, "more than 2^32-1 triangles");

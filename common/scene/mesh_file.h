@@ -16,8 +16,8 @@ namespace rtc {
 /// spheres are cube-spheres with 4x4 tan-warped quads per cube face (192 triangles),
 /// cones/cylinders have 16 segments around, 1 along, no end caps (32 triangles).
 struct Tessellation {
-  int sphere_quads = 4;     ///< quads along each edge of a cube face, >= 1
-  int cone_segments = 16;   ///< segments around a cone, >= 3
+  int sphere_quads = 4;    ///< quads along each edge of a cube face, >= 1
+  int cone_segments = 16;  ///< segments around a cone, >= 3
 };
 
 struct MeshLoadOptions {

@@ -52,7 +52,8 @@ class NffReader {
                   std::to_string(tessellation.cone_segments));
     }
     const auto magic = [&](std::string_view m) { return text_.compare(0, m.size(), m) == 0; };
-    if (magic("\x1f\x8b") || magic("\xfd" "7zXZ")) {
+    if (magic("\x1f\x8b") || magic("\xfd"
+                                   "7zXZ")) {
       throw_at(path.string(), 0,
                "compressed NFF; decompress it first (gunzip -k / xz -dk) and load the .nff");
     }
@@ -104,7 +105,8 @@ class NffReader {
   void read_sphere() {
     const glm::vec3 center = read_point("sphere centre");
     const float radius = cursor_.next_float("sphere radius");
-    if (!(radius > 0.0f)) cursor_.fail("sphere radius must be positive, got " + std::to_string(radius));
+    if (!(radius > 0.0f))
+      cursor_.fail("sphere radius must be positive, got " + std::to_string(radius));
     if (sphere_.points.empty()) sphere_ = make_cube_sphere(tessellation_.sphere_quads);
     append_sphere(builder_, sphere_, glm::dvec3(center), radius);
   }
@@ -192,9 +194,15 @@ class NffReader {
       cursor_.next_token();
       seen[which] = true;
       switch (which) {
-        case 0: camera.eye = read_point("view from"); break;
-        case 1: camera.look_at = read_point("view at"); break;
-        case 2: camera.up = read_point("view up"); break;
+        case 0:
+          camera.eye = read_point("view from");
+          break;
+        case 1:
+          camera.look_at = read_point("view at");
+          break;
+        case 2:
+          camera.up = read_point("view up");
+          break;
         case 3: {
           camera.vfov_deg = cursor_.next_float("view angle");
           if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f)) {
@@ -202,7 +210,9 @@ class NffReader {
           }
           break;
         }
-        case 4: cursor_.next_float("view hither"); break;  // no near plane in this tracer
+        case 4:
+          cursor_.next_float("view hither");
+          break;  // no near plane in this tracer
         default: {
           for (int a = 0; a < 2; ++a) {
             const std::int64_t r = cursor_.next_int("view resolution");

@@ -207,8 +207,8 @@ class ObjReader {
       return first_out_[v];
     }
     if (first_normal_[v] == corner.vn) return first_out_[v];
-    const std::uint64_t key = (static_cast<std::uint64_t>(v) << 32) ^
-                              static_cast<std::uint64_t>(corner.vn + 1);
+    const std::uint64_t key =
+        (static_cast<std::uint64_t>(v) << 32) ^ static_cast<std::uint64_t>(corner.vn + 1);
     const auto [it, inserted] = other_pairs_.try_emplace(key, 0);
     if (inserted) it->second = add_vertex(corner);
     return it->second;

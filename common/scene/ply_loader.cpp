@@ -12,13 +12,13 @@
 // against the bytes left (before allocating), list lengths, index range, finite coordinates
 // and truncation. A header line without a keyword (Wuson.ply's third line) is skipped with
 // a warning, as Assimp does.
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/base/error.h"
@@ -54,11 +54,11 @@ bool parse_type(std::string_view word, PlyType& type) {
     PlyType type;
   };
   static constexpr Name kNames[] = {
-      {"char", PlyType::i8},     {"int8", PlyType::i8},     {"uchar", PlyType::u8},
-      {"uint8", PlyType::u8},    {"short", PlyType::i16},   {"int16", PlyType::i16},
-      {"ushort", PlyType::u16},  {"uint16", PlyType::u16},  {"int", PlyType::i32},
-      {"int32", PlyType::i32},   {"uint", PlyType::u32},    {"uint32", PlyType::u32},
-      {"float", PlyType::f32},   {"float32", PlyType::f32}, {"double", PlyType::f64},
+      {"char", PlyType::i8},    {"int8", PlyType::i8},     {"uchar", PlyType::u8},
+      {"uint8", PlyType::u8},   {"short", PlyType::i16},   {"int16", PlyType::i16},
+      {"ushort", PlyType::u16}, {"uint16", PlyType::u16},  {"int", PlyType::i32},
+      {"int32", PlyType::i32},  {"uint", PlyType::u32},    {"uint32", PlyType::u32},
+      {"float", PlyType::f32},  {"float32", PlyType::f32}, {"double", PlyType::f64},
       {"float64", PlyType::f64}};
   for (const Name& n : kNames) {
     if (n.name == word) {
@@ -72,13 +72,17 @@ bool parse_type(std::string_view word, PlyType& type) {
 std::size_t type_size(PlyType t) {
   switch (t) {
     case PlyType::i8:
-    case PlyType::u8: return 1;
+    case PlyType::u8:
+      return 1;
     case PlyType::i16:
-    case PlyType::u16: return 2;
+    case PlyType::u16:
+      return 2;
     case PlyType::i32:
     case PlyType::u32:
-    case PlyType::f32: return 4;
-    case PlyType::f64: return 8;
+    case PlyType::f32:
+      return 4;
+    case PlyType::f64:
+      return 8;
   }
   return 1;
 }
@@ -100,14 +104,22 @@ T load_bytes(const unsigned char* p, bool swap) {
 /// One binary scalar as double (exact for every PLY type).
 double load_scalar(const unsigned char* p, PlyType t, bool swap) {
   switch (t) {
-    case PlyType::i8: return static_cast<std::int8_t>(p[0]);
-    case PlyType::u8: return p[0];
-    case PlyType::i16: return load_bytes<std::int16_t>(p, swap);
-    case PlyType::u16: return load_bytes<std::uint16_t>(p, swap);
-    case PlyType::i32: return load_bytes<std::int32_t>(p, swap);
-    case PlyType::u32: return load_bytes<std::uint32_t>(p, swap);
-    case PlyType::f32: return load_bytes<float>(p, swap);
-    case PlyType::f64: return load_bytes<double>(p, swap);
+    case PlyType::i8:
+      return static_cast<std::int8_t>(p[0]);
+    case PlyType::u8:
+      return p[0];
+    case PlyType::i16:
+      return load_bytes<std::int16_t>(p, swap);
+    case PlyType::u16:
+      return load_bytes<std::uint16_t>(p, swap);
+    case PlyType::i32:
+      return load_bytes<std::int32_t>(p, swap);
+    case PlyType::u32:
+      return load_bytes<std::uint32_t>(p, swap);
+    case PlyType::f32:
+      return load_bytes<float>(p, swap);
+    case PlyType::f64:
+      return load_bytes<double>(p, swap);
   }
   return 0.0;
 }
@@ -115,7 +127,9 @@ double load_scalar(const unsigned char* p, PlyType t, bool swap) {
 class PlyReader {
  public:
   explicit PlyReader(const std::filesystem::path& path)
-      : file_(path.string()), storage_(path), bytes_(storage_.view()),
+      : file_(path.string()),
+        storage_(path),
+        bytes_(storage_.view()),
         builder_(path.stem().string(), path.string()) {}
 
   MeshFile read() {
@@ -294,9 +308,8 @@ class PlyReader {
     }
     if (min_size > 0 && element.count > remaining() / min_size) {
       fail(0, "truncated file: element " + element.name + " declares " +
-                  std::to_string(element.count) + " items of at least " +
-                  std::to_string(min_size) + " bytes but only " + std::to_string(remaining()) +
-                  " bytes remain");
+                  std::to_string(element.count) + " items of at least " + std::to_string(min_size) +
+                  " bytes but only " + std::to_string(remaining()) + " bytes remain");
     }
   }
 
@@ -357,7 +370,8 @@ class PlyReader {
         element.properties[1].type == PlyType::f32 && element.properties[2].type == PlyType::f32) {
       // The pack's layout (float x, y, z, little-endian): one copy, then the finiteness check.
       static_assert(sizeof(glm::vec3) == 12);
-      const std::uint32_t first = builder_.add_vertices(data_at(pos_), static_cast<std::size_t>(element.count));
+      const std::uint32_t first =
+          builder_.add_vertices(data_at(pos_), static_cast<std::size_t>(element.count));
       pos_ += static_cast<std::size_t>(element.count) * 12;
       for (std::uint64_t item = 0; item < element.count; ++item) {
         check_finite(builder_.position(first + static_cast<std::uint32_t>(item)), element, item, 0,
@@ -428,10 +442,9 @@ class PlyReader {
     // Binary: the items must fit in what is left; ascii: at least two bytes each.
     const std::size_t left = text == nullptr ? remaining() / type_size(p.type) : bytes_.size() / 2;
     if (n < 0 || n > static_cast<double>(left)) {
-      fail(text != nullptr ? text->line() : 0,
-           item_name(element, item) + ": bad list length " +
-               std::to_string(static_cast<std::int64_t>(n)) +
-               (n < 0 ? "" : " (truncated file?)"));
+      fail(text != nullptr ? text->line() : 0, item_name(element, item) + ": bad list length " +
+                                                   std::to_string(static_cast<std::int64_t>(n)) +
+                                                   (n < 0 ? "" : " (truncated file?)"));
     }
     return static_cast<std::size_t>(n);
   }

@@ -36,7 +36,8 @@ void bracket(const std::vector<Key>& keys, int frame, std::size_t& i0, std::size
     return;
   }
   i1 = k + 1;
-  t = static_cast<double>(frame - keys[k].frame) / static_cast<double>(keys[k + 1].frame - keys[k].frame);
+  t = static_cast<double>(frame - keys[k].frame) /
+      static_cast<double>(keys[k + 1].frame - keys[k].frame);
 }
 
 glm::dvec3 mix3(const glm::vec3& a, const glm::vec3& b, double t) {
@@ -66,7 +67,8 @@ Aabb Scene::bounds() const {
     const bool identity = world == glm::mat4(1.0f);
     for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
       if (!used[i]) continue;
-      box.extend(identity ? mesh.positions[i] : glm::vec3(world * glm::vec4(mesh.positions[i], 1.0f)));
+      box.extend(identity ? mesh.positions[i]
+                          : glm::vec3(world * glm::vec4(mesh.positions[i], 1.0f)));
     }
   }
   return box;
@@ -87,7 +89,8 @@ FramePose pose_at(const Scene& scene, int frame) {
     pose.camera.eye = glm::vec3(mix3(a.eye, b.eye, t));
     pose.camera.look_at = glm::vec3(mix3(a.look_at, b.look_at, t));
     pose.camera.up = glm::vec3(mix3(a.up, b.up, t));
-    pose.camera.vfov_deg = static_cast<float>(double(a.vfov_deg) * (1.0 - t) + double(b.vfov_deg) * t);
+    pose.camera.vfov_deg =
+        static_cast<float>(double(a.vfov_deg) * (1.0 - t) + double(b.vfov_deg) * t);
   }
 
   pose.world_from_object.reserve(scene.meshes.size());
@@ -103,8 +106,8 @@ FramePose pose_at(const Scene& scene, int frame) {
       pose.world_from_object[track.mesh] = a.matrix();  // on or outside a key: that key, exactly
       continue;
     }
-    const glm::dquat rotation = glm::slerp(glm::normalize(to_double(a.rotate)),
-                                           glm::normalize(to_double(b.rotate)), t);
+    const glm::dquat rotation =
+        glm::slerp(glm::normalize(to_double(a.rotate)), glm::normalize(to_double(b.rotate)), t);
     pose.world_from_object[track.mesh] =
         glm::mat4(compose(mix3(a.translate, b.translate, t), rotation, mix3(a.scale, b.scale, t)));
   }

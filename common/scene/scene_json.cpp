@@ -35,15 +35,23 @@ std::string element(const std::string& path, std::size_t i) {
 
 std::string type_name(const Json& j) {
   switch (j.type()) {
-    case Json::value_t::null: return "null";
-    case Json::value_t::object: return "an object";
-    case Json::value_t::array: return "an array";
-    case Json::value_t::string: return "a string";
-    case Json::value_t::boolean: return "a boolean";
+    case Json::value_t::null:
+      return "null";
+    case Json::value_t::object:
+      return "an object";
+    case Json::value_t::array:
+      return "an array";
+    case Json::value_t::string:
+      return "a string";
+    case Json::value_t::boolean:
+      return "a boolean";
     case Json::value_t::number_integer:
-    case Json::value_t::number_unsigned: return "an integer";
-    case Json::value_t::number_float: return "a number";
-    default: return "an unsupported value";
+    case Json::value_t::number_unsigned:
+      return "an integer";
+    case Json::value_t::number_float:
+      return "a number";
+    default:
+      return "an unsupported value";
   }
 }
 
@@ -97,7 +105,8 @@ class Reader {
     std::int64_t v = 0;
     if (j.is_number_integer()) {
       if (j.is_number_unsigned() &&
-          j.get<std::uint64_t>() > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+          j.get<std::uint64_t>() >
+              static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
         fail(path, "integer out of range");
       }
       v = j.get<std::int64_t>();
@@ -127,7 +136,8 @@ class Reader {
   const Json& array(const Json& j, const std::string& path, std::size_t length = 0) const {
     if (!j.is_array()) fail(path, "expected an array, got " + type_name(j));
     if (length > 0 && j.size() != length) {
-      fail(path, "expected " + std::to_string(length) + " elements, got " + std::to_string(j.size()));
+      fail(path,
+           "expected " + std::to_string(length) + " elements, got " + std::to_string(j.size()));
     }
     return j;
   }
@@ -168,7 +178,8 @@ Camera read_camera_fields(const Reader& r, const Json& j, const std::string& pat
 /// keep base's values).
 Transform read_transform_fields(const Reader& r, const Json& j, const std::string& path,
                                 Transform base) {
-  if (const Json* v = r.optional(j, "translate")) base.translate = r.vec3(*v, child(path, "translate"));
+  if (const Json* v = r.optional(j, "translate"))
+    base.translate = r.vec3(*v, child(path, "translate"));
   const Json* axis_angle = r.optional(j, "rotate_deg_axis");
   const Json* quaternion = r.optional(j, "quaternion");
   if (axis_angle != nullptr && quaternion != nullptr) {
@@ -209,8 +220,8 @@ Transform read_transform_fields(const Reader& r, const Json& j, const std::strin
 }
 
 Material read_material(const Reader& r, const Json& j, const std::string& path) {
-  r.expect_object(j, path,
-                  {"name", "diffuse", "specular", "shininess", "emission", "reflective", "opacity"});
+  r.expect_object(
+      j, path, {"name", "diffuse", "specular", "shininess", "emission", "reflective", "opacity"});
   Material m;
   m.name = r.string(r.required(j, path, "name"), child(path, "name"));
   if (m.name.empty()) r.fail(child(path, "name"), "must not be empty");
@@ -221,7 +232,8 @@ Material read_material(const Reader& r, const Json& j, const std::string& path) 
     m.shininess = r.real(*v, child(path, "shininess"));
     if (m.shininess < 0.0f) r.fail(child(path, "shininess"), "must not be negative");
   }
-  if (const Json* v = r.optional(j, "reflective")) m.reflective = r.boolean(*v, child(path, "reflective"));
+  if (const Json* v = r.optional(j, "reflective"))
+    m.reflective = r.boolean(*v, child(path, "reflective"));
   if (const Json* v = r.optional(j, "opacity")) {
     m.opacity = r.real(*v, child(path, "opacity"));
     if (m.opacity < 0.0f || m.opacity > 1.0f) r.fail(child(path, "opacity"), "must be in [0, 1]");
@@ -270,7 +282,8 @@ class SceneJsonLoader {
     }
     if (const Json* v = r_.optional(root, "meshes")) {
       r_.array(*v, "meshes");
-      for (std::size_t i = 0; i < v->size(); ++i) entries.push_back(read_mesh_entry((*v)[i], element("meshes", i)));
+      for (std::size_t i = 0; i < v->size(); ++i)
+        entries.push_back(read_mesh_entry((*v)[i], element("meshes", i)));
     }
     for (MeshEntry& entry : entries) resolve(entry);
     for (const MeshEntry& entry : entries) ++uses_left_[entry.key];
@@ -345,7 +358,8 @@ class SceneJsonLoader {
       std::string what = e.what();
       // Drop nlohmann's "[json.exception.parse_error.101] " prefix; keep line and column.
       const std::size_t bracket = what.find("] ");
-      if (what.starts_with("[json.exception") && bracket != std::string::npos) what.erase(0, bracket + 2);
+      if (what.starts_with("[json.exception") && bracket != std::string::npos)
+        what.erase(0, bracket + 2);
       throw Error(r_.file() + ": JSON " + what);
     }
   }
@@ -374,7 +388,8 @@ class SceneJsonLoader {
       r_.expect_object(*v, p, {"translate", "rotate_deg_axis", "quaternion", "scale"});
       entry.transform = read_transform_fields(r_, *v, p, Transform{});
     }
-    if (const Json* v = r_.optional(j, "material")) entry.material = r_.string(*v, child(path, "material"));
+    if (const Json* v = r_.optional(j, "material"))
+      entry.material = r_.string(*v, child(path, "material"));
     return entry;
   }
 
@@ -385,7 +400,8 @@ class SceneJsonLoader {
   /// Checks that the mesh file exists (before anything is loaded) and names it canonically.
   void resolve(MeshEntry& entry) const {
     if (entry.file.empty()) r_.fail(file_field(entry), "empty file name");
-    entry.resolved = fs::path(entry.file).is_absolute() ? fs::path(entry.file) : folder_ / entry.file;
+    entry.resolved =
+        fs::path(entry.file).is_absolute() ? fs::path(entry.file) : folder_ / entry.file;
     std::error_code ec;
     if (!fs::exists(entry.resolved, ec)) {
       r_.fail(file_field(entry), "mesh file \"" + entry.file + "\" not found (looked for " +
@@ -452,7 +468,8 @@ class SceneJsonLoader {
   }
 
   void check_triangles(const Json& j) const {
-    const std::int64_t expected = r_.integer(j, "triangles", 0, std::numeric_limits<std::int64_t>::max());
+    const std::int64_t expected =
+        r_.integer(j, "triangles", 0, std::numeric_limits<std::int64_t>::max());
     if (static_cast<std::uint64_t>(expected) != input_triangles_) {
       spdlog::warn("{}: \"triangles\" says {}, the meshes have {} (before dropping degenerates)",
                    r_.file(), expected, input_triangles_);
@@ -482,7 +499,8 @@ class SceneJsonLoader {
       r_.expect_object(list[i], path, {"position", "color"});
       PointLight light;
       light.position = r_.vec3(r_.required(list[i], path, "position"), child(path, "position"));
-      if (const Json* v = r_.optional(list[i], "color")) light.color = r_.vec3(*v, child(path, "color"));
+      if (const Json* v = r_.optional(list[i], "color"))
+        light.color = r_.vec3(*v, child(path, "color"));
       scene_.lights.push_back(light);
     }
   }
@@ -491,9 +509,12 @@ class SceneJsonLoader {
     r_.expect_object(j, "animation", {"frames", "camera", "meshes", "lights"});
     Animation& anim = scene_.animation;
     const Json& frames = r_.array(r_.required(j, "animation", "frames"), "animation.frames", 2);
-    anim.frame_begin = static_cast<int>(r_.integer(frames[0], "animation.frames[0]", -kMaxFrame, kMaxFrame));
-    anim.frame_end = static_cast<int>(r_.integer(frames[1], "animation.frames[1]", -kMaxFrame, kMaxFrame));
-    if (anim.frame_end < anim.frame_begin) r_.fail("animation.frames", "end frame before begin frame");
+    anim.frame_begin =
+        static_cast<int>(r_.integer(frames[0], "animation.frames[0]", -kMaxFrame, kMaxFrame));
+    anim.frame_end =
+        static_cast<int>(r_.integer(frames[1], "animation.frames[1]", -kMaxFrame, kMaxFrame));
+    if (anim.frame_end < anim.frame_begin)
+      r_.fail("animation.frames", "end frame before begin frame");
 
     if (const Json* list = r_.optional(j, "camera")) {
       r_.array(*list, "animation.camera");
@@ -549,7 +570,8 @@ class SceneJsonLoader {
         track.light = static_cast<std::uint32_t>(
             r_.integer(r_.required(track_json, path, "light"), child(path, "light"), 0, max_light));
         for (const LightTrack& other : anim.lights) {
-          if (other.light == track.light) r_.fail(child(path, "light"), "light already has a track");
+          if (other.light == track.light)
+            r_.fail(child(path, "light"), "light already has a track");
         }
         const std::string keys_path = child(path, "keys");
         const Json& keys = r_.array(r_.required(track_json, path, "keys"), keys_path);
@@ -559,7 +581,8 @@ class SceneJsonLoader {
           r_.expect_object(keys[k], key_path, {"frame", "position"});
           LightKey lk;
           lk.frame = read_frame(keys[k], key_path);
-          lk.position = r_.vec3(r_.required(keys[k], key_path, "position"), child(key_path, "position"));
+          lk.position =
+              r_.vec3(r_.required(keys[k], key_path, "position"), child(key_path, "position"));
           track.keys.push_back(lk);
         }
         sort_keys(r_, track.keys, keys_path);

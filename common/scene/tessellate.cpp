@@ -182,7 +182,8 @@ void append_sphere(MeshBuilder& builder, const SphereTemplate& unit, const glm::
   for (const glm::dvec3& q : unit.points) {
     builder.add_vertex(glm::vec3(center + radius * q), glm::vec3(q));
   }
-  for (const glm::uvec3& t : unit.triangles) builder.add_triangle(first + t.x, first + t.y, first + t.z);
+  for (const glm::uvec3& t : unit.triangles)
+    builder.add_triangle(first + t.x, first + t.y, first + t.z);
 }
 
 void append_cone(MeshBuilder& builder, const glm::dvec3& base, double base_radius,
@@ -193,7 +194,8 @@ void append_cone(MeshBuilder& builder, const glm::dvec3& base, double base_radiu
   // A zero-length axis still gets its 2 * segments (degenerate, dropped) triangles, so
   // triangle numbering does not depend on the data.
   const glm::dvec3 w = height > 0.0 ? axis / height : glm::dvec3(0.0, 0.0, 1.0);
-  const glm::dvec3 helper = std::abs(w.x) < 0.9 ? glm::dvec3(1.0, 0.0, 0.0) : glm::dvec3(0.0, 1.0, 0.0);
+  const glm::dvec3 helper =
+      std::abs(w.x) < 0.9 ? glm::dvec3(1.0, 0.0, 0.0) : glm::dvec3(0.0, 1.0, 0.0);
   const glm::dvec3 u = glm::normalize(glm::cross(w, helper));
   const glm::dvec3 v = glm::cross(w, u);
   const std::uint32_t first = builder.vertex_count();

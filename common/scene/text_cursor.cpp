@@ -137,7 +137,8 @@ std::int64_t TextCursor::next_int(std::string_view what) {
   // At the end of the file the message names the last line with a token.
   if (token.empty()) fail("unexpected end of file, expected " + std::string(what));
   std::int64_t value = 0;
-  if (!parse_int(token, value)) fail("bad " + std::string(what) + " " + quoted(token) + " (expected an integer)");
+  if (!parse_int(token, value))
+    fail("bad " + std::string(what) + " " + quoted(token) + " (expected an integer)");
   return value;
 }
 

@@ -70,6 +70,7 @@ struct vint<1> {
   vint(std::int32_t i) : v(i) {}  // NOLINT: broadcasting is the point
   [[nodiscard]] std::int32_t lane(int) const { return v; }
   void set_lane(int, std::int32_t i) { v = i; }
+  void store(std::int32_t* p) const { *p = v; }
   friend vbool<1> operator<(vint a, vint b) { return vbool<1>(a.v < b.v); }
   friend vbool<1> operator>(vint a, vint b) { return vbool<1>(a.v > b.v); }
   friend vbool<1> operator==(vint a, vint b) { return vbool<1>(a.v == b.v); }
@@ -151,6 +152,7 @@ struct vint<4> {
   vint() = default;
   vint(std::int32_t i) : v(_mm_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m128i x) : v(x) {}
+  void store(std::int32_t* p) const { _mm_storeu_si128(reinterpret_cast<__m128i*>(p), v); }
   [[nodiscard]] std::int32_t lane(int i) const {
     alignas(16) std::int32_t tmp[4];
     _mm_store_si128(reinterpret_cast<__m128i*>(tmp), v);
@@ -191,13 +193,13 @@ inline vbool<4> sign_bit(vfloat<4> a) {
   return vbool<4>(_mm_castsi128_ps(_mm_srai_epi32(_mm_castps_si128(a.v), 31)));
 }
 
-/// Three packet floats: a vector per lane, stored as structure of arrays.
+/// Three packet floats: a vector per lane, stored as structure of arrays and indexed by axis
+/// (the triangle test picks axes at run time).
 template <int N>
 struct PacketVec3 {
-  vfloat<N> x, y, z;
-  [[nodiscard]] const vfloat<N>& operator[](int axis) const {
-    return axis == 0 ? x : (axis == 1 ? y : z);
-  }
+  vfloat<N> v[3];
+  [[nodiscard]] const vfloat<N>& operator[](int axis) const { return v[axis]; }
+  [[nodiscard]] vfloat<N>& operator[](int axis) { return v[axis]; }
 };
 
 }  // namespace rtc::RTC_ISA_NS

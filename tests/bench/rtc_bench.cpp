@@ -205,6 +205,13 @@ int run(int argc, char** argv) {
   app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+  rtc::KdBuildOptions kd_options;
+  app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);
+  app.add_option("--kd-intersection-cost", kd_options.intersection_cost, "SAH K_I")->check(CLI::PositiveNumber);
+  app.add_option("--kd-empty-bonus", kd_options.empty_bonus, "SAH empty-space bonus")->check(CLI::Range(0.0f, 0.99f));
+  app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
+      ->check(CLI::Range(0, 60));
+  app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
@@ -224,7 +231,7 @@ int run(int argc, char** argv) {
   // Build time: median over the reps, like every other figure.
   std::shared_ptr<rtc::FrameState> fs;
   const double build_ms = time_median_ms(reps, [&] {
-    fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, rtc::KdBuildOptions{});
+    fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options);
   });
   const rtc::KdBuildStats& kd = fs->tree.stats();
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
@@ -251,6 +258,8 @@ int run(int argc, char** argv) {
                          {"kd_max_depth", kd.max_depth},
                          {"kd_tris_per_leaf", kd.mean_tris_per_leaf},
                          {"kd_sah_cost", kd.sah_cost},
+                         {"kd_traversal_cost", kd_options.traversal_cost},
+                         {"kd_intersection_cost", kd_options.intersection_cost},
                          {"reps", reps}};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;
@@ -376,6 +385,7 @@ int run(int argc, char** argv) {
     } else {
       rtc::RenderOptions ro;
       ro.isa = isa;
+      ro.kd = kd_options;
       rtc::Renderer renderer(scene, ro);
       rtc::TileRayCounts counts;
       const double ms = time_median_ms(reps, [&] {

@@ -48,7 +48,8 @@ int main(int argc, char** argv) {
       continue;
     }
     std::size_t triangles = 0;
-    const double own = best_ms(runs, [&] { triangles = rtc::load_mesh_file(path).mesh.triangles.size(); });
+    const double own =
+        best_ms(runs, [&] { triangles = rtc::load_mesh_file(path).mesh.triangles.size(); });
     std::printf("%s: %zu triangles\n  rtc loader      %8.1f ms\n", path.c_str(), triangles, own);
     if (ext == "obj") {
       const double tiny = best_ms(runs, [&] {

@@ -81,8 +81,8 @@ TEST(ObjLoader, AcceptsNegativeIndicesAndTextureCoordinates) {
 
 TEST(ObjLoader, MissingMtlWarnsAndUsesTheDefaultMaterial) {
   TempDir dir;
-  const auto obj = dir.write("nomtl.obj",
-                             "mtllib absent.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl shiny\nf 1 2 3\n");
+  const auto obj = dir.write(
+      "nomtl.obj", "mtllib absent.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl shiny\nf 1 2 3\n");
   const MeshFile file = load_obj(obj);
   ASSERT_EQ(file.mesh.material_ids.size(), 1u);
   EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]), Material{});
@@ -96,14 +96,16 @@ TEST(ObjLoader, IndexOutOfRangeNamesFileAndLine) {
   EXPECT_NE(message.find("out of range"), std::string::npos) << message;
   const auto zero = dir.write("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
   EXPECT_NE(error_of([&] { (void)load_obj(zero); }).find("zero.obj:4:"), std::string::npos);
-  const auto normal = dir.write("vn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//2 2//1 3//1\n");
+  const auto normal =
+      dir.write("vn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//2 2//1 3//1\n");
   EXPECT_NE(error_of([&] { (void)load_obj(normal); }).find("normal index 2"), std::string::npos);
 }
 
 TEST(ObjLoader, NonFiniteCoordinateIsRejected) {
   TempDir dir;
   for (const char* value : {"nan", "inf", "-inf", "1e999", "abc"}) {
-    const auto obj = dir.write("nan.obj", std::string("v 0 0 0\nv ") + value + " 0 0\nv 0 1 0\nf 1 2 3\n");
+    const auto obj =
+        dir.write("nan.obj", std::string("v 0 0 0\nv ") + value + " 0 0\nv 0 1 0\nf 1 2 3\n");
     const std::string message = error_of([&] { (void)load_obj(obj); });
     EXPECT_NE(message.find("nan.obj:2:"), std::string::npos) << value << ": " << message;
     EXPECT_NE(message.find("vertex x"), std::string::npos) << value << ": " << message;
@@ -139,8 +141,8 @@ TEST(ObjLoader, DropsDegenerateTrianglesAndKeepsSourceIndices) {
   const auto obj = dir.write("degenerate.obj",
                              "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\n"
                              "f 1 2 3\n"
-                             "f 1 2 2\n"   // repeated index
-                             "f 1 2 4\n"   // collinear: zero area
+                             "f 1 2 2\n"  // repeated index
+                             "f 1 2 4\n"  // collinear: zero area
                              "f 3 2 1\n");
   const Mesh mesh = load_obj(obj).mesh;
   EXPECT_EQ(mesh.dropped_degenerate, 2u);
@@ -170,7 +172,8 @@ struct PlyData {
   std::vector<std::vector<int>> faces{{0, 1, 2, 3}, {0, 2, 1}};
 };
 
-std::string ply_header(const std::string& format, const PlyData& data, const std::string& index_type) {
+std::string ply_header(const std::string& format, const PlyData& data,
+                       const std::string& index_type) {
   return "ply\nformat " + format + " 1.0\ncomment test\nelement vertex " +
          std::to_string(data.points.size()) +
          "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
@@ -195,7 +198,8 @@ std::string ascii_ply(const PlyData& data) {
 }
 
 std::string binary_ply(const PlyData& data, bool big_endian = false) {
-  std::string out = ply_header(big_endian ? "binary_big_endian" : "binary_little_endian", data, "int");
+  std::string out =
+      ply_header(big_endian ? "binary_big_endian" : "binary_little_endian", data, "int");
   auto put = [&](auto value) {
     std::string bytes;
     test::append_le(bytes, value);
@@ -232,12 +236,14 @@ TEST(PlyLoader, AsciiLittleAndBigEndianGiveTheSameMesh) {
 
 TEST(PlyLoader, AcceptsHeaderLineWithoutKeywordAndNormals) {
   TempDir dir;
-  const auto ply = dir.write("wuson_like.ply",
-                             "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: \n"
-                             "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                             "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
-                             "element face 1\nproperty list uchar uint vertex_indices\nend_header\n"
-                             "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n");
+  const auto ply =
+      dir.write("wuson_like.ply",
+                "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: \n"
+                "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                "property float nx\nproperty float ny\nproperty float nz\nproperty float "
+                "s\nproperty float t\n"
+                "element face 1\nproperty list uchar uint vertex_indices\nend_header\n"
+                "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n");
   const Mesh mesh = load_ply(ply).mesh;
   ASSERT_EQ(mesh.triangles.size(), 1u);
   ASSERT_EQ(mesh.normals.size(), 3u);
@@ -272,14 +278,18 @@ TEST(PlyLoader, IndexOutOfRangeIsRejected) {
   TempDir dir;
   PlyData data;
   data.faces = {{0, 1, 2}, {0, 2, 4}};
-  const std::string binary = error_of([&] { (void)load_ply(dir.write("b.ply", binary_ply(data))); });
-  EXPECT_NE(binary.find("b.ply: face 1: vertex index 4 out of range (4 vertices)"), std::string::npos)
+  const std::string binary =
+      error_of([&] { (void)load_ply(dir.write("b.ply", binary_ply(data))); });
+  EXPECT_NE(binary.find("b.ply: face 1: vertex index 4 out of range (4 vertices)"),
+            std::string::npos)
       << binary;
   const std::string ascii = error_of([&] { (void)load_ply(dir.write("a.ply", ascii_ply(data))); });
   // Header 10 lines, 4 vertex lines, the second face on line 16.
-  EXPECT_NE(ascii.find("a.ply:16: face 1: vertex index 4 out of range"), std::string::npos) << ascii;
+  EXPECT_NE(ascii.find("a.ply:16: face 1: vertex index 4 out of range"), std::string::npos)
+      << ascii;
   data.faces = {{0, 1, -1}};
-  const std::string negative = error_of([&] { (void)load_ply(dir.write("n.ply", binary_ply(data))); });
+  const std::string negative =
+      error_of([&] { (void)load_ply(dir.write("n.ply", binary_ply(data))); });
   EXPECT_NE(negative.find("vertex index -1 out of range"), std::string::npos) << negative;
 }
 
@@ -287,14 +297,18 @@ TEST(PlyLoader, NonFiniteCoordinateIsRejected) {
   TempDir dir;
   PlyData data;
   data.points[2].y = std::numeric_limits<float>::quiet_NaN();
-  const std::string message = error_of([&] { (void)load_ply(dir.write("nan.ply", binary_ply(data))); });
+  const std::string message =
+      error_of([&] { (void)load_ply(dir.write("nan.ply", binary_ply(data))); });
   EXPECT_NE(message.find("vertex 2: non-finite coordinate"), std::string::npos) << message;
   data.points[2].y = std::numeric_limits<float>::infinity();
-  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("inf.ply", binary_ply(data))); }).find("non-finite"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] { (void)load_ply(dir.write("inf.ply", binary_ply(data))); }).find("non-finite"),
+      std::string::npos);
   std::string ascii = ascii_ply(PlyData{});
   ascii[ascii.find("end_header\n") + 11] = 'n';  // "0.000000" -> "n.000000"
-  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("t.ply", ascii)); }).find("t.ply:11: vertex 0: bad number"),
+  EXPECT_NE(error_of([&] {
+              (void)load_ply(dir.write("t.ply", ascii));
+            }).find("t.ply:11: vertex 0: bad number"),
             std::string::npos);
 }
 
@@ -302,25 +316,29 @@ TEST(PlyLoader, EmptyMeshAndBadHeadersAreRejected) {
   TempDir dir;
   PlyData data;
   data.faces.clear();
-  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("e.ply", binary_ply(data))); }).find("no triangles"),
-            std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("x.ply", "solid x\n")); }).find("not a PLY file"),
-            std::string::npos);
-  EXPECT_NE(error_of([&] {
-              (void)load_ply(dir.write("f.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"));
-            }).find("unknown PLY format"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] { (void)load_ply(dir.write("e.ply", binary_ply(data))); }).find("no triangles"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of([&] { (void)load_ply(dir.write("x.ply", "solid x\n")); }).find("not a PLY file"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of([&] {
+        (void)load_ply(dir.write("f.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"));
+      }).find("unknown PLY format"),
+      std::string::npos);
   EXPECT_NE(error_of([&] {
               (void)load_ply(dir.write("p.ply",
                                        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
                                        "property float y\nproperty float z\nend_header\n"));
             }).find("no \"element face\""),
             std::string::npos);
-  EXPECT_NE(error_of([&] {
-              (void)load_ply(dir.write("q.ply",
-                                       "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"));
-            }).find("q.ply:4: unknown property type"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] {
+        (void)load_ply(dir.write(
+            "q.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"));
+      }).find("q.ply:4: unknown property type"),
+      std::string::npos);
 }
 
 TEST(PlyLoader, DropsDegenerateFaces) {
@@ -335,12 +353,13 @@ TEST(PlyLoader, DropsDegenerateFaces) {
 
 TEST(PlyLoader, SkipsOtherElementsAndProperties) {
   TempDir dir;
-  const auto ply = dir.write("extra.ply",
-                             "ply\nformat ascii 1.0\nelement material 1\nproperty uchar red\n"
-                             "property list uchar float weights\n"
-                             "element vertex 3\nproperty double z\nproperty float y\nproperty short x\n"
-                             "element face 1\nproperty uchar flags\nproperty list ushort uint vertex_index\n"
-                             "end_header\n7 2 0.5 0.5\n0 0 0\n0 0 1\n0 1 0\n9 3 0 1 2\n");
+  const auto ply =
+      dir.write("extra.ply",
+                "ply\nformat ascii 1.0\nelement material 1\nproperty uchar red\n"
+                "property list uchar float weights\n"
+                "element vertex 3\nproperty double z\nproperty float y\nproperty short x\n"
+                "element face 1\nproperty uchar flags\nproperty list ushort uint vertex_index\n"
+                "end_header\n7 2 0.5 0.5\n0 0 0\n0 0 1\n0 1 0\n9 3 0 1 2\n");
   const Mesh mesh = load_ply(ply).mesh;
   EXPECT_EQ(mesh.positions[1], glm::vec3(1, 0, 0));
   EXPECT_EQ(mesh.positions[2], glm::vec3(0, 1, 0));
@@ -363,10 +382,13 @@ TEST(GltfLoader, BakesNodeTransformsAndInstances) {
 
 TEST(GltfLoader, GarbageIsRejected) {
   TempDir dir;
-  EXPECT_NE(error_of([&] { (void)load_gltf(dir.write("bad.glb", "glTF\x02\0\0\0garbage")); }).find("bad.glb"),
+  EXPECT_NE(error_of([&] {
+              (void)load_gltf(dir.write("bad.glb", "glTF\x02\0\0\0garbage"));
+            }).find("bad.glb"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_gltf(dir.write("bad.gltf", "{\"asset\": 3}")); }).find("bad.gltf"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] { (void)load_gltf(dir.write("bad.gltf", "{\"asset\": 3}")); }).find("bad.gltf"),
+      std::string::npos);
 }
 
 }  // namespace

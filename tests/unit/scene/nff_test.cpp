@@ -18,7 +18,8 @@ using test::error_of;
 using test::TempDir;
 
 double triangle_area(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
-  return 0.5 * glm::length(glm::cross(glm::dvec3(b) - glm::dvec3(a), glm::dvec3(c) - glm::dvec3(a)));
+  return 0.5 *
+         glm::length(glm::cross(glm::dvec3(b) - glm::dvec3(a), glm::dvec3(c) - glm::dvec3(a)));
 }
 
 double mesh_area(const Mesh& mesh) {
@@ -49,8 +50,9 @@ TEST(NffLoader, ConesAreOpenAndWindOutward) {
   const Mesh cone = load_nff(dir.write("c.nff", "c 1 2 3 1 1 2 5 0.25\n")).mesh;
   ASSERT_EQ(cone.triangles.size(), 32u);
   for (const glm::uvec3& t : cone.triangles) {
-    const glm::dvec3 centroid =
-        (glm::dvec3(cone.positions[t.x]) + glm::dvec3(cone.positions[t.y]) + glm::dvec3(cone.positions[t.z])) / 3.0;
+    const glm::dvec3 centroid = (glm::dvec3(cone.positions[t.x]) + glm::dvec3(cone.positions[t.y]) +
+                                 glm::dvec3(cone.positions[t.z])) /
+                                3.0;
     const glm::dvec3 outward(centroid.x - 1.0, centroid.y - 2.0, 0.0);
     EXPECT_GT(glm::dot(geometric_normal(cone, t), outward), 0.0);
     EXPECT_GT(glm::dot(glm::dvec3(cone.normals[t.x]), outward), 0.0);
@@ -86,25 +88,28 @@ TEST(NffLoader, TessellationIsAParameter) {
   MeshLoadOptions options;
   options.tessellation.sphere_quads = 8;
   EXPECT_EQ(load_mesh_file(nff, options).mesh.triangles.size(), 768u + 32u);
-  EXPECT_NE(error_of([&] { (void)load_nff(nff, Tessellation{0, 16}); }).find("sphere_quads"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(nff, Tessellation{0, 16});
+            }).find("sphere_quads"),
             std::string::npos);
 }
 
 TEST(NffLoader, ReadsViewBackgroundLightsAndFill) {
   TempDir dir;
-  const auto nff = dir.write("scene.nff",
-                             "# SPD-like header\n"
-                             "v\nfrom 1 2 3\nat 0 0 0\nup 0 0 1\nangle 45\nhither 0.01\nresolution 320 240\n"
-                             "b 0.1 0.2 0.3\n"
-                             "l 1 1 1\n"
-                             "l 2 2 2 0.5 0.25 1\n"
-                             "l 3 3 3\n"
-                             "f 1 0.5 0.25 0.8 0.4 20 0.1 1.5\n"
-                             "p 3\n0 0 0\n1 0 0\n0 1 0\n"
-                             "f 1 1 1 1 0 100000 0 1\n"
-                             "p 3 0 0 0 0 1 0 1 0 0\n"
-                             "f 1 0.5 0.25 0.8 0.4 20 0.1 1.5\n"
-                             "s 0 0 0 1\n");
+  const auto nff =
+      dir.write("scene.nff",
+                "# SPD-like header\n"
+                "v\nfrom 1 2 3\nat 0 0 0\nup 0 0 1\nangle 45\nhither 0.01\nresolution 320 240\n"
+                "b 0.1 0.2 0.3\n"
+                "l 1 1 1\n"
+                "l 2 2 2 0.5 0.25 1\n"
+                "l 3 3 3\n"
+                "f 1 0.5 0.25 0.8 0.4 20 0.1 1.5\n"
+                "p 3\n0 0 0\n1 0 0\n0 1 0\n"
+                "f 1 1 1 1 0 100000 0 1\n"
+                "p 3 0 0 0 0 1 0 1 0 0\n"
+                "f 1 0.5 0.25 0.8 0.4 20 0.1 1.5\n"
+                "s 0 0 0 1\n");
   const MeshFile file = load_nff(nff);
   ASSERT_TRUE(file.camera.has_value());
   EXPECT_EQ(file.camera->eye, glm::vec3(1, 2, 3));
@@ -135,7 +140,10 @@ TEST(NffLoader, ReadsViewBackgroundLightsAndFill) {
 
 TEST(NffLoader, PatchesKeepTheirNormals) {
   TempDir dir;
-  const Mesh mesh = load_nff(dir.write("pp.nff", "pp 3\n0 0 0 0 0 1\n1 0 0 0 1 1\n0 1 0 0 0 3\np 3\n0 0 1\n1 0 1\n0 1 1\n")).mesh;
+  const Mesh mesh =
+      load_nff(dir.write("pp.nff",
+                         "pp 3\n0 0 0 0 0 1\n1 0 0 0 1 1\n0 1 0 0 0 3\np 3\n0 0 1\n1 0 1\n0 1 1\n"))
+          .mesh;
   ASSERT_EQ(mesh.triangles.size(), 2u);
   ASSERT_EQ(mesh.normals.size(), 6u);
   EXPECT_EQ(mesh.normals[0], glm::vec3(0, 0, 1));
@@ -175,35 +183,51 @@ TEST(NffLoader, ConcavePolygonIsEarClippedWithItsArea) {
 
 TEST(NffLoader, BadInputNamesTheLine) {
   TempDir dir;
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("u.nff", "s 0 0 0 1\nq 1 2 3\n")); })
-                .find("u.nff:2: unknown NFF statement \"q\""),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("u.nff", "s 0 0 0 1\nq 1 2 3\n"));
+            }).find("u.nff:2: unknown NFF statement \"q\""),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("t.nff", "p 4\n0 0 0\n1 0 0\n1 1 0\n")); })
-                .find("t.nff:4: unexpected end of file"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("t.nff", "p 4\n0 0 0\n1 0 0\n1 1 0\n"));
+            }).find("t.nff:4: unexpected end of file"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("n.nff", "s 0 nan 0 1\n")); }).find("n.nff:1: bad sphere centre"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("n.nff", "s 0 nan 0 1\n"));
+            }).find("n.nff:1: bad sphere centre"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("r.nff", "s 0 0 0 -1\n")); }).find("radius must be positive"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("r.nff", "s 0 0 0 -1\n"));
+            }).find("radius must be positive"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("k.nff", "p 2\n0 0 0\n1 0 0\n")); }).find("at least 3"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("k.nff", "p 2\n0 0 0\n1 0 0\n"));
+            }).find("at least 3"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("h.nff", "p 99999999999\n0 0 0\n")); }).find("truncated"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("h.nff", "p 99999999999\n0 0 0\n"));
+            }).find("truncated"),
             std::string::npos);
   EXPECT_NE(error_of([&] { (void)load_nff(dir.write("e.nff", "b 0 0 0\n")); }).find("no triangles"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("v.nff", "v\nfrom 0 0 1\nat 0 0 0\nangle 45\ns 0 0 0 1\n")); })
-                .find("without \"up\""),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("v.nff", "v\nfrom 0 0 1\nat 0 0 0\nangle 45\ns 0 0 0 1\n"));
+            }).find("without \"up\""),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("f.nff", "f 1 1 1 1 0\ns 0 0 0 1\n")); }).find("f.nff:1: line ends early"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("f.nff", "f 1 1 1 1 0\ns 0 0 0 1\n"));
+            }).find("f.nff:1: line ends early"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { (void)load_nff(dir.write("z.nff", std::string("\x1f\x8b\x08\0", 4))); }).find("decompress"),
+  EXPECT_NE(error_of([&] {
+              (void)load_nff(dir.write("z.nff", std::string("\x1f\x8b\x08\0", 4)));
+            }).find("decompress"),
             std::string::npos);
 }
 
 // --- tessellation -----------------------------------------------------------------------
 
 TEST(Tessellation, ConvexPolygonIsAFanFromVertexZero) {
-  const std::vector<glm::vec3> hexagon{{2, 0, 0}, {1, 1.7f, 0}, {-1, 1.7f, 0}, {-2, 0, 0}, {-1, -1.7f, 0}, {1, -1.7f, 0}};
+  const std::vector<glm::vec3> hexagon{{2, 0, 0},  {1, 1.7f, 0},   {-1, 1.7f, 0},
+                                       {-2, 0, 0}, {-1, -1.7f, 0}, {1, -1.7f, 0}};
   EXPECT_TRUE(is_convex_polygon(hexagon));
   const std::vector<glm::uvec3> tris = triangulate_polygon(hexagon);
   ASSERT_EQ(tris.size(), 4u);
@@ -238,7 +262,8 @@ TEST(Tessellation, EarClippingCoversConcavePolygonsInAnyPlane) {
         ASSERT_EQ(tris.size(), star.size() - 2);
         double area = 0.0;
         for (const glm::uvec3& t : tris) {
-          const glm::dvec3 n = glm::cross(glm::dvec3(star[t.y] - star[t.x]), glm::dvec3(star[t.z] - star[t.x]));
+          const glm::dvec3 n =
+              glm::cross(glm::dvec3(star[t.y] - star[t.x]), glm::dvec3(star[t.z] - star[t.x]));
           EXPECT_GT(n[plane] * shoelace, 0.0) << "every triangle keeps the polygon's winding";
           area += 0.5 * glm::length(n);
         }

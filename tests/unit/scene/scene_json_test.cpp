@@ -16,7 +16,8 @@ using test::error_of;
 using test::TempDir;
 
 constexpr const char* kTriangle = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-constexpr const char* kQuad = "mtllib q.mtl\nusemtl blue\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+constexpr const char* kQuad =
+    "mtllib q.mtl\nusemtl blue\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
 constexpr const char* kQuadMtl = "newmtl blue\nKd 0 0 1\n";
 
 /// A folder with tri.obj, q.obj + q.mtl and `json` as scene.json; returns the error message
@@ -110,7 +111,8 @@ TEST(SceneJson, LoadsEveryField) {
   EXPECT_EQ(anim.meshes[0].mesh, 2u);
   ASSERT_EQ(anim.meshes[0].keys.size(), 2u);
   EXPECT_EQ(anim.meshes[0].keys[0].frame, 0) << "keys are sorted by frame";
-  EXPECT_EQ(anim.meshes[0].keys[0].transform.translate, glm::vec3(1, 2, 3)) << "defaults to the static transform";
+  EXPECT_EQ(anim.meshes[0].keys[0].transform.translate, glm::vec3(1, 2, 3))
+      << "defaults to the static transform";
   EXPECT_EQ(anim.meshes[0].keys[1].transform.scale, glm::vec3(1, 2, 1));
   ASSERT_EQ(anim.lights.size(), 1u);
   EXPECT_EQ(anim.lights[0].light, 1u);
@@ -123,13 +125,17 @@ TEST(SceneJson, LoadsEveryField) {
 
 TEST(SceneJson, UnknownFieldsAreRejectedWithTheirFullPath) {
   JsonCase c;
-  const std::string base = R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keyz": []}]}})";
-  EXPECT_NE(c.error(base).find("scene.json: unknown field \"animation.meshes[0].keyz\""), std::string::npos)
+  const std::string base =
+      R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keyz": []}]}})";
+  EXPECT_NE(c.error(base).find("scene.json: unknown field \"animation.meshes[0].keyz\""),
+            std::string::npos)
       << c.error(base);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "colour": 1})").find("unknown field \"colour\""), std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0,0,1], "look_at": [0,0,0], "fov": 3}})")
-                .find("unknown field \"camera.fov\""),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "colour": 1})").find("unknown field \"colour\""),
             std::string::npos);
+  EXPECT_NE(
+      c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0,0,1], "look_at": [0,0,0], "fov": 3}})")
+          .find("unknown field \"camera.fov\""),
+      std::string::npos);
   EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"rotate": [1, 0, 0, 0]}}]})")
                 .find("unknown field \"meshes[0].transform.rotate\""),
             std::string::npos);
@@ -140,21 +146,28 @@ TEST(SceneJson, UnknownFieldsAreRejectedWithTheirFullPath) {
 
 TEST(SceneJson, WrongTypesAndLengthsNameTheField) {
   JsonCase c;
-  const std::string eye = c.error(R"({"mesh": "tri.obj", "camera": {"eye": "far", "look_at": [0,0,0]}})");
-  EXPECT_NE(eye.find("scene.json: field \"camera.eye\": expected an array of 3 numbers, got a string"),
-            std::string::npos)
+  const std::string eye =
+      c.error(R"({"mesh": "tri.obj", "camera": {"eye": "far", "look_at": [0,0,0]}})");
+  EXPECT_NE(
+      eye.find("scene.json: field \"camera.eye\": expected an array of 3 numbers, got a string"),
+      std::string::npos)
       << eye;
   EXPECT_NE(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 1], "look_at": [0,0,0]}})")
                 .find("\"camera.eye\": expected an array of 3 numbers, got 2 elements"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "background": [0, "x", 0]})").find("\"background[1]\": expected a number"),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "background": [0, "x", 0]})")
+                .find("\"background[1]\": expected a number"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": 7})").find("\"mesh\": expected a string, got an integer"), std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512]})").find("\"resolution\": expected 2 elements"),
+  EXPECT_NE(c.error(R"({"mesh": 7})").find("\"mesh\": expected a string, got an integer"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512, 1.5]})").find("\"resolution[1]\": expected an integer"),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512]})")
+                .find("\"resolution\": expected 2 elements"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "render": {"spp": 0}})").find("\"render.spp\": must be in [1, 4096]"),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512, 1.5]})")
+                .find("\"resolution[1]\": expected an integer"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "render": {"spp": 0}})")
+                .find("\"render.spp\": must be in [1, 4096]"),
             std::string::npos);
   EXPECT_NE(c.error(R"([1, 2])").find("expected an object"), std::string::npos);
   EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "reflective": 1}]})")
@@ -169,26 +182,32 @@ TEST(SceneJson, NegativeResolutionAndNonFiniteNumbersAreRejected) {
             std::string::npos);
   const std::string huge = c.error(R"({"mesh": "tri.obj", "ambient": [1e999, 0, 0]})");
   EXPECT_NE(huge.find("scene.json"), std::string::npos) << huge;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [1e300, 0, 0]})").find("\"ambient[0]\": number out of float range"),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [1e300, 0, 0]})")
+                .find("\"ambient[0]\": number out of float range"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [NaN, 0, 0]})").find("scene.json: JSON parse error at line 1"),
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [NaN, 0, 0]})")
+                .find("scene.json: JSON parse error at line 1"),
             std::string::npos);
 }
 
 TEST(SceneJson, SyntaxErrorNamesLineAndColumn) {
   JsonCase c;
   const std::string message = c.error("{\n  \"mesh\": \"tri.obj\",\n  \"name\" \"x\"\n}");
-  EXPECT_NE(message.find("scene.json: JSON parse error at line 3, column"), std::string::npos) << message;
+  EXPECT_NE(message.find("scene.json: JSON parse error at line 3, column"), std::string::npos)
+      << message;
 }
 
 TEST(SceneJson, MissingMeshFileNamesFieldAndPath) {
   JsonCase c;
-  const std::string message = c.error(R"({"meshes": [{"file": "tri.obj"}, {"file": "absent.ply"}]})");
-  EXPECT_NE(message.find("scene.json: field \"meshes[1].file\": mesh file \"absent.ply\" not found"),
-            std::string::npos)
+  const std::string message =
+      c.error(R"({"meshes": [{"file": "tri.obj"}, {"file": "absent.ply"}]})");
+  EXPECT_NE(
+      message.find("scene.json: field \"meshes[1].file\": mesh file \"absent.ply\" not found"),
+      std::string::npos)
       << message;
   EXPECT_NE(c.error(R"({"name": "nothing"})").find("no geometry"), std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"name": "x"}]})").find("missing field \"meshes[0].file\""), std::string::npos);
+  EXPECT_NE(c.error(R"({"meshes": [{"name": "x"}]})").find("missing field \"meshes[0].file\""),
+            std::string::npos);
 }
 
 TEST(SceneJson, BadMeshFileErrorsNameBothFiles) {
@@ -228,29 +247,44 @@ TEST(SceneJson, DefaultsWithoutCameraAndLights) {
 
 TEST(SceneJson, AnimationReferencesAreChecked) {
   JsonCase c;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": "nope", "keys": [{"frame": 0}]}]}})")
-                .find("\"animation.meshes[0].mesh\": no mesh named \"nope\""),
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": "nope", "keys": [{"frame": 0}]}]}})")
+          .find("\"animation.meshes[0].mesh\": no mesh named \"nope\""),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 3, "keys": [{"frame": 0}]}]}})")
+          .find("\"animation.meshes[0].mesh\": must be in [0, 0]"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": [{"frame": 1}, {"frame": 1}]}]}})")
+          .find("two keys for frame 1"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": []}]}})")
+          .find("at least one key"),
+      std::string::npos);
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [5, 1]}})")
+                .find("end frame before begin"),
             std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 3, "keys": [{"frame": 0}]}]}})")
-                .find("\"animation.meshes[0].mesh\": must be in [0, 0]"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": [{"frame": 1}, {"frame": 1}]}]}})")
-                .find("two keys for frame 1"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": []}]}})")
-                .find("at least one key"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [5, 1]}})").find("end frame before begin"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "lights": [], "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})")
-                .find("the scene has no lights"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "camera": [{"eye": [0, 0, 1]}]}})")
-                .find("missing field \"animation.camera[0].frame\""),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "transform": {"rotate_deg_axis": [90, 0, 0, 0]}}]})")
-                .find("rotation axis must not be zero"),
-            std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "lights": [], "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})")
+          .find("the scene has no lights"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "camera": [{"eye": [0, 0, 1]}]}})")
+          .find("missing field \"animation.camera[0].frame\""),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "transform": {"rotate_deg_axis": [90, 0, 0, 0]}}]})")
+          .find("rotation axis must not be zero"),
+      std::string::npos);
   EXPECT_NE(c.error(R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "material": "gold"}]})")
                 .find("\"meshes[0].material\": no material named \"gold\""),
             std::string::npos);
@@ -261,21 +295,26 @@ TEST(SceneJson, AnimationReferencesAreChecked) {
 
 TEST(SceneJson, NffMeshBringsItsViewUnlessTheJsonGivesOne) {
   TempDir dir;
-  (void)dir.write("s.nff", "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 30\nhither 1\nresolution 100 50\nb 0.5 0.5 0.5\nl 1 2 3\ns 0 0 0 1\n");
+  (void)dir.write("s.nff",
+                  "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 30\nhither 1\nresolution 100 50\nb 0.5 "
+                  "0.5 0.5\nl 1 2 3\ns 0 0 0 1\n");
   const Scene scene = load_scene(dir.write("a.json", R"({"mesh": "s.nff"})"));
   EXPECT_EQ(scene.camera.vfov_deg, 30.0f);
   EXPECT_EQ(scene.width, 100);
   EXPECT_EQ(scene.background, glm::vec3(0.5f));
   ASSERT_EQ(scene.lights.size(), 1u);
   EXPECT_EQ(scene.lights[0].color, glm::vec3(0.5f));
-  const Scene own = load_scene(dir.write("b.json", R"({"mesh": "s.nff", "resolution": [64, 64], "lights": [{"position": [9, 9, 9]}]})"));
+  const Scene own = load_scene(dir.write(
+      "b.json",
+      R"({"mesh": "s.nff", "resolution": [64, 64], "lights": [{"position": [9, 9, 9]}]})"));
   EXPECT_EQ(own.width, 64);
   EXPECT_EQ(own.lights[0].position, glm::vec3(9.0f));
 }
 
 TEST(SceneJson, SharedMeshFilesAreLoadedOnceAndCopied) {
   JsonCase c;
-  const Scene scene = load_scene(c.write(R"({"meshes": [{"file": "q.obj"}, {"file": "./q.obj", "transform": {"translate": [5, 0, 0]}}]})"));
+  const Scene scene = load_scene(c.write(
+      R"({"meshes": [{"file": "q.obj"}, {"file": "./q.obj", "transform": {"translate": [5, 0, 0]}}]})"));
   ASSERT_EQ(scene.meshes.size(), 2u);
   EXPECT_EQ(scene.meshes[0].positions, scene.meshes[1].positions);
   EXPECT_EQ(scene.meshes[0].material_ids, scene.meshes[1].material_ids);
@@ -283,7 +322,8 @@ TEST(SceneJson, SharedMeshFilesAreLoadedOnceAndCopied) {
 }
 
 TEST(SceneJson, DocumentedExampleLoads) {
-  const std::filesystem::path doc = std::filesystem::path(RTC_TEST_DATA) / "../../../docs/scene-format.md";
+  const std::filesystem::path doc =
+      std::filesystem::path(RTC_TEST_DATA) / "../../../docs/scene-format.md";
   if (!std::filesystem::exists(doc)) GTEST_SKIP() << doc << " not found";
   std::ifstream in(doc);
   std::stringstream text;

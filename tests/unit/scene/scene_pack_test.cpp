@@ -112,8 +112,8 @@ double area(const Mesh& mesh) {
 
 TEST(ScenePack, NffTessellationMatchesThePackMeshes) {
   RTC_REQUIRE_SCENE_PACK();
-  for (const char* name : {"spd-balls-s3", "spd-gears", "spd-mount", "spd-teapot", "spd-tetra", "spd-balls",
-                           "spd-rings", "spd-tree"}) {
+  for (const char* name : {"spd-balls-s3", "spd-gears", "spd-mount", "spd-teapot", "spd-tetra",
+                           "spd-balls", "spd-rings", "spd-tree"}) {
     SCOPED_TRACE(name);
     const std::filesystem::path folder = scene_pack() / name;
     std::filesystem::path mesh_path = folder / (std::string(name) + ".obj");
@@ -139,7 +139,8 @@ TEST(ScenePack, NffTessellationMatchesThePackMeshes) {
 
 TEST(ScenePack, NffViewMatchesTheViewJson) {
   RTC_REQUIRE_SCENE_PACK();
-  for (const char* name : {"spd-balls-s3", "spd-gears", "spd-mount", "spd-teapot", "spd-tetra", "spd-tree"}) {
+  for (const char* name :
+       {"spd-balls-s3", "spd-gears", "spd-mount", "spd-teapot", "spd-tetra", "spd-tree"}) {
     SCOPED_TRACE(name);
     const Scene view = load_scene(scene_pack() / name / "view.json");
     const Scene nff = load_scene(scene_pack() / name / (std::string(name) + ".nff"));
@@ -158,7 +159,8 @@ TEST(ScenePack, NffViewMatchesTheViewJson) {
 
 TEST(ScenePack, CompressedNffIsRejectedWithAHint) {
   RTC_REQUIRE_SCENE_PACK();
-  const std::string message = error_of([] { (void)load_scene(scene_pack() / "spd-tetra-s8/spd-tetra-s8.nff.gz"); });
+  const std::string message =
+      error_of([] { (void)load_scene(scene_pack() / "spd-tetra-s8/spd-tetra-s8.nff.gz"); });
   EXPECT_NE(message.find("decompress"), std::string::npos) << message;
 }
 

@@ -45,7 +45,8 @@ Scene animated_scene() {
   scene.animation.frame_end = 20;
   MeshTrack track;
   track.mesh = 0;
-  track.keys = {TransformKey{10, rotated_about_y(0.0f, {2, 0, 0})}, TransformKey{20, rotated_about_y(90.0f, {4, 0, 0})}};
+  track.keys = {TransformKey{10, rotated_about_y(0.0f, {2, 0, 0})},
+                TransformKey{20, rotated_about_y(90.0f, {4, 0, 0})}};
   scene.animation.meshes.push_back(track);
   LightTrack light;
   light.light = 0;
@@ -180,7 +181,9 @@ TEST(DefaultScene, IsTheSameBitsEveryCall) {
     const Mesh& x = a.meshes[m];
     const Mesh& y = b.meshes[m];
     ASSERT_EQ(x.positions.size(), y.positions.size());
-    EXPECT_EQ(std::memcmp(x.positions.data(), y.positions.data(), x.positions.size() * sizeof(glm::vec3)), 0);
+    EXPECT_EQ(
+        std::memcmp(x.positions.data(), y.positions.data(), x.positions.size() * sizeof(glm::vec3)),
+        0);
     EXPECT_EQ(x.normals, y.normals);
     EXPECT_EQ(x.triangles, y.triangles);
     EXPECT_EQ(x.material_ids, y.material_ids);
@@ -199,7 +202,8 @@ TEST(DefaultScene, SurfacesFaceOutward) {
     for (const glm::uvec3& t : mesh.triangles) {
       const glm::dvec3 a(mesh.positions[t.x]), b(mesh.positions[t.y]), c(mesh.positions[t.z]);
       const glm::dvec3 n = glm::cross(b - a, c - a);
-      ASSERT_GT(glm::dot(n, glm::dvec3(mesh.normals[t.x] + mesh.normals[t.y] + mesh.normals[t.z])), 0.0)
+      ASSERT_GT(glm::dot(n, glm::dvec3(mesh.normals[t.x] + mesh.normals[t.y] + mesh.normals[t.z])),
+                0.0)
           << mesh.name << ": geometric and shading normals disagree";
     }
   }
@@ -216,7 +220,8 @@ TEST(DefaultScene, SurfacesFaceOutward) {
       }
       glm::dvec3 centre(0.0);
       const std::uint32_t first = t.x / 24 * 24;
-      for (std::uint32_t i = first; i < first + 24; ++i) centre += glm::dvec3(mesh.positions[i]) / 24.0;
+      for (std::uint32_t i = first; i < first + 24; ++i)
+        centre += glm::dvec3(mesh.positions[i]) / 24.0;
       EXPECT_GT(glm::dot(n, (a + b + c) / 3.0 - centre), 0.0) << mesh.name;
     }
   }
@@ -233,7 +238,8 @@ TEST(DefaultScene, AnimationMovesOneSphereOnly) {
   int moved = 0;
   for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
     if (first.world_from_object[m] != middle.world_from_object[m]) ++moved;
-    EXPECT_EQ(first.world_from_object[m], scene.meshes[m].world_from_object) << "frame 0 is the static placement";
+    EXPECT_EQ(first.world_from_object[m], scene.meshes[m].world_from_object)
+        << "frame 0 is the static placement";
   }
   EXPECT_EQ(moved, 1);
   EXPECT_EQ(first.camera, middle.camera);

@@ -82,12 +82,13 @@ void append_le(std::string& out, T value) {
 }
 
 inline std::string base64(const std::string& bytes) {
-  static const char* const kTable = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  static const char* const kTable =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   std::size_t i = 0;
   for (; i + 2 < bytes.size(); i += 3) {
-    const auto n = (std::uint32_t(std::uint8_t(bytes[i])) << 16) | (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8) |
-                   std::uint8_t(bytes[i + 2]);
+    const auto n = (std::uint32_t(std::uint8_t(bytes[i])) << 16) |
+                   (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8) | std::uint8_t(bytes[i + 2]);
     for (int k = 3; k >= 0; --k) out += kTable[(n >> (6 * k)) & 63];
   }
   if (i < bytes.size()) {
@@ -123,9 +124,9 @@ inline std::string small_gltf() {
 }  // namespace rtc::test
 
 /// Skips the current test with a message when the shared scene pack is not there.
-#define RTC_REQUIRE_SCENE_PACK()                                                          \
-  do {                                                                                  \
-    if (::rtc::test::scene_pack().empty()) {                                            \
-      GTEST_SKIP() << "scene pack not found at " << RTC_SHARED_SCENES << "; skipping";  \
-    }                                                                                   \
+#define RTC_REQUIRE_SCENE_PACK()                                                       \
+  do {                                                                                 \
+    if (::rtc::test::scene_pack().empty()) {                                           \
+      GTEST_SKIP() << "scene pack not found at " << RTC_SHARED_SCENES << "; skipping"; \
+    }                                                                                  \
   } while (0)
