@@ -162,6 +162,11 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const std::uint32_t prim = leaf_refs[i];
       intersect_triangle<N, kOcclusion>(accel[prim], static_cast<std::int32_t>(prim), ray, active, hit,
                                         occluded);
+      if constexpr (kOcclusion) {
+        // A shadow ray stops at its first hit: occluded lanes test nothing more.
+        active &= !occluded;
+        if (none(active)) break;
+      }
     }
     // A lane is finished once it is occluded, or its closest hit lies within this leaf's
     // segment: every later leaf starts beyond it. Empty leaves count too.

@@ -234,7 +234,9 @@ struct Flattener {
     stats.max_depth = std::max(stats.max_depth, depth);
     const double rel_area = static_cast<double>(box.area()) * inv_root_area;
     if (node.axis < 0) {
-      RTC_CHECK(refs.size() < (1u << 30), "kd-tree: more than 2^30 triangle references");
+      if (refs.size() + node.tris.size() >= (1u << 30)) {
+        throw Error("kd-tree: more than 2^30 triangle references (the 8-byte node format's limit)");
+      }
       KdNode leaf;
       leaf.bits = (static_cast<std::uint32_t>(refs.size()) << 2) | 3u;
       leaf.count = static_cast<std::uint32_t>(node.tris.size());
@@ -246,7 +248,7 @@ struct Flattener {
       return;
     }
     const auto first = static_cast<std::uint32_t>(nodes.size());
-    RTC_CHECK(first < (1u << 30), "kd-tree: more than 2^30 nodes");
+    if (first + 2 >= (1u << 30)) throw Error("kd-tree: more than 2^30 nodes (the 8-byte node format's limit)");
     nodes.resize(nodes.size() + 2);
     KdNode inner;
     inner.bits = (first << 2) | static_cast<std::uint32_t>(node.axis);

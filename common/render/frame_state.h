@@ -1,37 +1,57 @@
-// One frame of a scene, ready to trace: world-space geometry, kd-tree, camera, lights.
+// One frame of a scene, ready to trace: world-space geometry and kd-tree (shared between frames
+// whose meshes did not move), camera, lights, materials, settings.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include "common/accel/kd_tree.h"
+#include "common/accel/trace.h"
 #include "common/math/camera.h"
 #include "common/scene/scene.h"
 
 namespace rtc {
 
+/// World-space triangles of one pose of the meshes, and their kd-tree. Immutable; shared by
+/// every frame in which no mesh moved. Shading data (normals, materials) are kept apart from
+/// the 48-byte triangle records in the tree and touched only for hits.
+struct FrameGeometry {
+  std::vector<glm::vec3> positions;        ///< world space
+  std::vector<glm::vec3> normals;          ///< world space, one per position (zero when none)
+  std::vector<glm::uvec3> triangles;       ///< into positions
+  std::vector<std::uint32_t> material_ids; ///< per triangle, valid indices into the materials
+  std::vector<std::uint8_t> smooth;        ///< per triangle: 1 = interpolate vertex normals
+  std::vector<std::uint32_t> source_index; ///< per triangle: id in input-file order (all meshes)
+  KdTree tree;
+};
+
+/// Another tracer to route every ray through, keeping rtc's shading: rtc-bench uses it to time
+/// an Embree-based renderer with the same shading code. Callbacks must be thread-safe; `rays`
+/// come in groups of at most 4 coherent rays (one packet's active lanes).
+struct ExternalTracer {
+  void* context = nullptr;
+  void (*intersect)(void* context, const RayQuery* rays, RayHit* hits, std::size_t count) = nullptr;
+  void (*occluded)(void* context, const RayQuery* rays, std::uint8_t* occluded, std::size_t count) = nullptr;
+};
+
 /// Everything a tile render of one frame reads. Immutable once built; share it between
-/// threads freely. Shading data (normals, materials) are kept apart from the 48-byte
-/// triangle records in the tree and touched only for hits.
+/// threads freely.
 struct FrameState {
   int frame = 0;
   int width = 0, height = 0;
   Camera camera;
   CameraRays camera_rays{Camera{}, 1, 1};
-  std::vector<glm::vec3> positions;        ///< world space
-  std::vector<glm::vec3> normals;          ///< world space, one per position (zero when none)
-  std::vector<glm::uvec3> triangles;       ///< into positions
-  std::vector<std::uint32_t> material_ids; ///< per triangle
-  std::vector<std::uint8_t> smooth;        ///< per triangle: 1 = interpolate vertex normals
-  std::vector<std::uint32_t> source_index; ///< per triangle: id in input-file order (all meshes)
-  std::vector<Material> materials;
-  std::vector<PointLight> lights;          ///< world space
+  std::shared_ptr<const FrameGeometry> geometry;
+  std::vector<Material> materials;  ///< at least one
+  std::vector<PointLight> lights;   ///< world space
   glm::vec3 background{0.0f};
   glm::vec3 ambient{0.0f};
   RenderSettings settings;
-  KdTree tree;
+  const ExternalTracer* tracer = nullptr;  ///< null: rtc's own kd-tree kernels
 };
 
 }  // namespace rtc

@@ -1,84 +1,32 @@
 // Per-ISA tile rendering: packets of 2x2 primary rays, packet shadow rays per light, mirror
 // reflections recursing as packets, Whitted/Phong shading (Wald et al. 2001, section 3).
 //
-// Shading runs lane by lane in scalar float code, the same code at every packet width, so a
-// pixel is the same bits whether its rays travelled in a packet or alone.
+// Shading runs lane by lane in scalar float code (common/render/shading.h and the few lines
+// below), the same code at every packet width, so a pixel is the same bits whether its rays
+// travelled in a packet or alone.
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstring>
+#include <limits>
 
 #include "common/accel/kd_traverse.h"
 #include "common/accel/trace.h"
 #include "common/image/image.h"
 #include "common/math/det_math.h"
-#include "common/math/ray_offset.h"
 #include "common/render/frame_state.h"
 #include "common/render/render_kernels.h"
+#include "common/render/shading.h"
 
 namespace rtc::RTC_ISA_NS {
 namespace {
 
-// A tiny scalar vector kept inside the ISA namespace (no ISA-compiled inline code leaks out).
-struct V3 {
-  float x = 0, y = 0, z = 0;
-};
-inline V3 v3(const glm::vec3& g) { return V3{g.x, g.y, g.z}; }
-inline V3 operator+(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline V3 operator-(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline V3 operator*(V3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-inline V3 operator*(V3 a, V3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-inline V3 operator-(V3 a) { return {-a.x, -a.y, -a.z}; }
-inline float dot(V3 a, V3 b) { return (a.x * b.x + a.y * b.y) + a.z * b.z; }
-inline V3 cross(V3 a, V3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-inline float max3(V3 a) { return std::max(a.x, std::max(a.y, a.z)); }
-/// Normalised, or `fallback` when the length is zero or not finite (degenerate data never
-/// turns into NaN pixels).
-inline V3 normalize_or(V3 a, V3 fallback) {
-  const float len2 = dot(a, a);
-  if (!(len2 > 0.0f) || !std::isfinite(len2)) return fallback;
-  return a * (1.0f / std::sqrt(len2));
-}
-
-inline V3 offset_origin(V3 p, V3 n, float magnitude) {
-  const glm::vec3 q = offset_ray_origin(glm::vec3(p.x, p.y, p.z), glm::vec3(n.x, n.y, n.z), magnitude);
-  return V3{q.x, q.y, q.z};
-}
-
-struct SurfaceHit {
-  V3 point;      // offset to the side the ray came from
-  V3 normal;     // shading normal facing the incoming ray
-  V3 geometric;  // geometric normal facing the incoming ray
-  V3 view;       // unit vector towards the ray origin
-  V3 dir;        // incoming ray direction (unnormalised)
-  const Material* material = nullptr;
-};
-
-SurfaceHit surface_at(const FrameState& fs, V3 dir, std::uint32_t prim, float beta, float gamma) {
-  const glm::uvec3 tri = fs.triangles[prim];
-  const V3 a = v3(fs.positions[tri.x]), b = v3(fs.positions[tri.y]), c = v3(fs.positions[tri.z]);
-  const float alpha = (1.0f - beta) - gamma;
-  // The hit point from the barycentrics, not org + t dir: it lies on the triangle to within
-  // a few ulps, which is what the ulp offset assumes.
-  const V3 p = (a * alpha + b * beta) + c * gamma;
-  V3 ng = normalize_or(cross(b - a, c - a), V3{0, 0, 1});
-  if (dot(ng, dir) > 0.0f) ng = -ng;
-  V3 n = ng;
-  if (fs.smooth[prim]) {
-    const V3 na = v3(fs.normals[tri.x]), nb = v3(fs.normals[tri.y]), nc = v3(fs.normals[tri.z]);
-    n = normalize_or((na * alpha + nb * beta) + nc * gamma, ng);
-    if (dot(n, dir) > 0.0f) n = -n;
-  }
-  const float magnitude = vertex_magnitude(fs.positions[tri.x], fs.positions[tri.y], fs.positions[tri.z]);
-  return SurfaceHit{offset_origin(p, ng, magnitude), n, ng, -normalize_or(dir, V3{0, 0, 1}), dir,
-                    &fs.materials[fs.material_ids[prim]]};
-}
+inline float max3(const glm::vec3& a) { return std::max(a.x, std::max(a.y, a.z)); }
 
 /// Per-lane results of tracing a packet one bounce deeper.
 template <int N>
 struct Lanes {
-  V3 weight[N];  // throughput carried by each lane
-  V3 color[N];   // radiance accumulated, already weighted
+  glm::vec3 weight[N];  // throughput carried by each lane
+  glm::vec3 color[N];   // radiance accumulated, already weighted
 };
 
 /// Rays assembled lane by lane in plain arrays, then loaded into a packet in one go.
@@ -86,70 +34,114 @@ template <int N>
 struct RayLanes {
   float org[3][N] = {};
   float dir[3][N] = {};
-  void set(int i, V3 o, V3 d) {
-    org[0][i] = o.x;
-    org[1][i] = o.y;
-    org[2][i] = o.z;
-    dir[0][i] = d.x;
-    dir[1][i] = d.y;
-    dir[2][i] = d.z;
+  float t_min[N] = {};
+  float t_max[N] = {};
+  void set(int i, const RayQuery& q) {
+    for (int a = 0; a < 3; ++a) {
+      org[a][i] = q.org[a];
+      dir[a][i] = q.dir[a];
+    }
+    t_min[i] = q.t_min;
+    t_max[i] = q.t_max;
   }
-  [[nodiscard]] RayPacket<N> packet(float t_min, float t_max) const {
+  [[nodiscard]] RayQuery query(int i) const {
+    return RayQuery{{org[0][i], org[1][i], org[2][i]}, t_min[i], {dir[0][i], dir[1][i], dir[2][i]}, t_max[i]};
+  }
+  [[nodiscard]] RayPacket<N> packet() const {
     RayPacket<N> p;
     for (int a = 0; a < 3; ++a) {
       p.org[a] = vfloat<N>::load(org[a]);
       p.dir[a] = vfloat<N>::load(dir[a]);
     }
-    p.t_min = vfloat<N>(t_min);
-    p.t_max = vfloat<N>(t_max);
+    p.t_min = vfloat<N>::load(t_min);
+    p.t_max = vfloat<N>::load(t_max);
     return p;
   }
 };
 
+/// Closest hits of the lanes in `lanes_mask`, from rtc's kd-tree or the external tracer.
+template <int N>
+void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, RayHit (&out)[N]) {
+  if (fs.tracer != nullptr) {
+    RayQuery q[N];
+    RayHit h[N];
+    int n = 0;
+    for (int i = 0; i < N; ++i) {
+      if ((lanes_mask >> i) & 1u) q[n++] = rays.query(i);
+    }
+    fs.tracer->intersect(fs.tracer->context, q, h, static_cast<std::size_t>(n));
+    n = 0;
+    for (int i = 0; i < N; ++i) {
+      if ((lanes_mask >> i) & 1u) out[i] = h[n++];
+    }
+    return;
+  }
+  const RayPacket<N> p = rays.packet();
+  HitPacket<N> hit{p.t_max, vfloat<N>(0.0f), vfloat<N>(0.0f), vint<N>(-1)};
+  intersect<N>(fs.geometry->tree, p, vbool<N>::from_bits(lanes_mask), hit);
+  float t[N], beta[N], gamma[N];
+  std::int32_t prim[N];
+  hit.t.store(t);
+  hit.beta.store(beta);
+  hit.gamma.store(gamma);
+  hit.prim.store(prim);
+  for (int i = 0; i < N; ++i) out[i] = RayHit{t[i], beta[i], gamma[i], static_cast<std::uint32_t>(prim[i])};
+}
+
+/// Occlusion of the lanes in `lanes_mask`, as a lane bit mask.
+template <int N>
+unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask) {
+  if (fs.tracer != nullptr) {
+    RayQuery q[N];
+    std::uint8_t occ[N];
+    int n = 0;
+    for (int i = 0; i < N; ++i) {
+      if ((lanes_mask >> i) & 1u) q[n++] = rays.query(i);
+    }
+    fs.tracer->occluded(fs.tracer->context, q, occ, static_cast<std::size_t>(n));
+    unsigned out = 0;
+    n = 0;
+    for (int i = 0; i < N; ++i) {
+      if (((lanes_mask >> i) & 1u) && occ[n++] != 0) out |= 1u << i;
+    }
+    return out;
+  }
+  return bits(occluded<N>(fs.geometry->tree, rays.packet(), vbool<N>::from_bits(lanes_mask)));
+}
+
 /// First-hit data the image keeps besides colour (sample 0 only).
 struct Aov {
   float depth = std::numeric_limits<float>::infinity();
-  V3 normal;
+  glm::vec3 normal{0.0f};
 };
 
 template <int N>
-void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> active, int depth,
-                    Lanes<N>& lanes, Aov* aov, TileRayCounts& counts) {
-  (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(bits(active)));
-  HitPacket<N> hit{ray.t_max, vfloat<N>(0.0f), vfloat<N>(0.0f), vint<N>(-1)};
-  intersect<N>(fs.tree, ray, active, hit);
-  float hit_t[N], hit_beta[N], hit_gamma[N], org[3][N], dir[3][N];
-  std::int32_t hit_prim[N];
-  hit.t.store(hit_t);
-  hit.beta.store(hit_beta);
-  hit.gamma.store(hit_gamma);
-  hit.prim.store(hit_prim);
-  for (int a = 0; a < 3; ++a) {
-    ray.org[a].store(org[a]);
-    ray.dir[a].store(dir[a]);
-  }
-  const unsigned active_lanes = bits(active);
+void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
+                    Aov* aov, TileRayCounts& counts) {
+  (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
+  RayHit hit[N];
+  closest_hits<N>(fs, rays, active, hit);
 
-  SurfaceHit surf[N];
-  V3 local[N];
+  SurfaceSample surf[N];
+  glm::vec3 local[N];
   unsigned hit_lanes = 0;
   for (int i = 0; i < N; ++i) {
-    if (!((active_lanes >> i) & 1u)) continue;
-    const std::int32_t prim = hit_prim[i];
-    if (prim < 0) {
-      lanes.color[i] = lanes.color[i] + lanes.weight[i] * v3(fs.background);
+    if (!((active >> i) & 1u)) continue;
+    if (hit[i].prim == kNoHit) {
+      lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
       continue;
     }
     hit_lanes |= 1u << i;
-    const V3 d{dir[0][i], dir[1][i], dir[2][i]};
-    surf[i] = surface_at(fs, d, static_cast<std::uint32_t>(prim), hit_beta[i], hit_gamma[i]);
+    const RayQuery q = rays.query(i);
+    surf[i] = surface_at(fs, q.dir, hit[i].prim, hit[i].beta, hit[i].gamma);
     const Material& m = *surf[i].material;
-    local[i] = v3(fs.ambient) * v3(m.diffuse) + v3(m.emission);
+    local[i] = fs.ambient * m.diffuse + m.emission;
     if (aov != nullptr) {
       // The depth channel gets the distance recomputed in double (exact for grazing rays too).
-      const glm::uvec3 tri = fs.triangles[static_cast<std::uint32_t>(prim)];
-      aov[i].depth = refined_distance(glm::vec3(org[0][i], org[1][i], org[2][i]), glm::vec3(d.x, d.y, d.z),
-                                      fs.positions[tri.x], fs.positions[tri.y], fs.positions[tri.z], hit_t[i]);
+      const FrameGeometry& g = *fs.geometry;
+      const glm::uvec3 tri = g.triangles[hit[i].prim];
+      aov[i].depth = refined_distance(q.org, q.dir, g.positions[tri.x], g.positions[tri.y], g.positions[tri.z],
+                                      hit[i].t);
       aov[i].normal = surf[i].normal;
     }
   }
@@ -157,37 +149,32 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
 
   // One packet of shadow rays per light (Wald et al. 2001, section 3).
   for (const PointLight& light : fs.lights) {
-    const V3 lp = v3(light.position);
     RayLanes<N> shadow;
+    glm::vec3 to_light[N];
     unsigned want = 0;
-    V3 to_light[N];
     for (int i = 0; i < N; ++i) {
       if (!((hit_lanes >> i) & 1u)) continue;
-      const SurfaceHit& s = surf[i];
-      const V3 d = lp - s.point;
-      // Lights behind the geometric surface or the shading normal add nothing.
-      if (!(dot(d, s.geometric) > 0.0f)) continue;
-      to_light[i] = normalize_or(d, s.normal);
-      if (!(dot(to_light[i], s.normal) > 0.0f)) continue;
+      const std::optional<ShadowRay> s = shadow_ray(surf[i], light);
+      if (!s) continue;
       want |= 1u << i;
-      shadow.set(i, s.point, d);
+      shadow.set(i, s->ray);
+      to_light[i] = s->to_light;
     }
     if (want == 0) continue;
     counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
-    // The light itself sits at t = 1.
-    const unsigned blocked = bits(occluded<N>(fs.tree, shadow.packet(0.0f, 1.0f), vbool<N>::from_bits(want)));
+    const unsigned blocked = occluded_lanes<N>(fs, shadow, want);
     for (int i = 0; i < N; ++i) {
       if (!((want >> i) & 1u) || ((blocked >> i) & 1u)) continue;
-      const SurfaceHit& s = surf[i];
+      const SurfaceSample& s = surf[i];
       const Material& m = *s.material;
-      const float n_dot_l = dot(s.normal, to_light[i]);
-      V3 contrib = v3(m.diffuse) * n_dot_l;
-      if (max3(v3(m.specular)) > 0.0f) {
-        const V3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
-        const float r_dot_v = dot(r, s.view);
-        if (r_dot_v > 0.0f) contrib = contrib + v3(m.specular) * det_powf(r_dot_v, m.shininess);
+      const float n_dot_l = glm::dot(s.normal, to_light[i]);
+      glm::vec3 contrib = m.diffuse * n_dot_l;
+      if (max3(m.specular) > 0.0f) {
+        const glm::vec3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
+        const float r_dot_v = glm::dot(r, s.view);
+        if (r_dot_v > 0.0f) contrib = contrib + m.specular * det_powf(r_dot_v, m.shininess);
       }
-      local[i] = local[i] + v3(light.color) * contrib;
+      local[i] = local[i] + light.color * contrib;
     }
   }
 
@@ -198,23 +185,22 @@ void trace_radiance(const FrameState& fs, const RayPacket<N>& ray, vbool<N> acti
   for (int i = 0; i < N; ++i) {
     if (!((hit_lanes >> i) & 1u)) continue;
     lanes.color[i] = lanes.color[i] + lanes.weight[i] * local[i];
-    const SurfaceHit& s = surf[i];
+    const SurfaceSample& s = surf[i];
     const Material& m = *s.material;
     if (!m.reflective || depth >= fs.settings.max_depth) continue;
-    const V3 w = lanes.weight[i] * v3(m.specular);
+    const glm::vec3 w = lanes.weight[i] * m.specular;
     if (!(max3(w) >= fs.settings.min_weight) || !(max3(w) > 0.0f)) continue;
-    const V3 d = s.dir;
-    V3 r = d - s.normal * (2.0f * dot(d, s.normal));
+    const glm::vec3 d = s.dir;
+    glm::vec3 r = d - s.normal * (2.0f * glm::dot(d, s.normal));
     // An interpolated normal can send the mirror ray below the surface; use the true one then.
-    if (!(dot(r, s.geometric) > 0.0f)) r = d - s.geometric * (2.0f * dot(d, s.geometric));
+    if (!(glm::dot(r, s.geometric) > 0.0f)) r = d - s.geometric * (2.0f * glm::dot(d, s.geometric));
     bounce |= 1u << i;
     next.weight[i] = w;
-    next.color[i] = V3{};
-    refl.set(i, s.point, r);
+    next.color[i] = glm::vec3(0.0f);
+    refl.set(i, RayQuery{s.point, 0.0f, r, std::numeric_limits<float>::infinity()});
   }
   if (bounce == 0) return;
-  trace_radiance<N>(fs, refl.packet(0.0f, std::numeric_limits<float>::infinity()), vbool<N>::from_bits(bounce),
-                    depth + 1, next, nullptr, counts);
+  trace_radiance<N>(fs, refl, bounce, depth + 1, next, nullptr, counts);
   for (int i = 0; i < N; ++i) {
     if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
   }
@@ -244,7 +230,8 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
         py[i] = by + i / kBlockW;
         if (px[i] < w && py[i] < h) valid |= 1u << i;
       }
-      V3 sum[N];
+      glm::vec3 sum[N];
+      for (glm::vec3& v : sum) v = glm::vec3(0.0f);
       Aov aov[N];
       for (int s = 0; s < spp; ++s) {
         double sx, sy;
@@ -253,19 +240,21 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
         for (int i = 0; i < N; ++i) {
           if (!((valid >> i) & 1u)) continue;
           const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
-          primary.set(i, v3(r.origin), v3(r.dir));
+          primary.set(i, RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
         }
-        const RayPacket<N> ray = primary.packet(0.0f, std::numeric_limits<float>::infinity());
         Lanes<N> lanes;
-        for (int i = 0; i < N; ++i) lanes.weight[i] = V3{1, 1, 1};
-        trace_radiance<N>(fs, ray, vbool<N>::from_bits(valid), 0, lanes, s == 0 ? aov : nullptr, counts);
+        for (int i = 0; i < N; ++i) {
+          lanes.weight[i] = glm::vec3(1.0f);
+          lanes.color[i] = glm::vec3(0.0f);
+        }
+        trace_radiance<N>(fs, primary, valid, 0, lanes, s == 0 ? aov : nullptr, counts);
         for (int i = 0; i < N; ++i) sum[i] = sum[i] + lanes.color[i];
       }
       const float inv_spp = 1.0f / static_cast<float>(spp);
       for (int i = 0; i < N; ++i) {
         if (!((valid >> i) & 1u)) continue;
         float* p = out.pixel(px[i], py[i]);
-        const V3 c = spp == 1 ? sum[i] : sum[i] * inv_spp;
+        const glm::vec3 c = spp == 1 ? sum[i] : sum[i] * inv_spp;
         p[0] = c.x;
         p[1] = c.y;
         p[2] = c.z;

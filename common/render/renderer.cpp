@@ -49,18 +49,18 @@ void check_settings(const RenderSettings& s) {
 
 // World-space geometry of all meshes at one pose. Transforms are applied in double and
 // rounded once, so an identity placement reproduces the file's coordinates exactly.
-void flatten(const Scene& scene, const FramePose& pose, FrameState& fs) {
+void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
   std::size_t vertex_count = 0, tri_count = 0;
   for (const Mesh& m : scene.meshes) {
     vertex_count += m.positions.size();
     tri_count += m.triangles.size();
   }
-  fs.positions.resize(vertex_count);
-  fs.normals.assign(vertex_count, glm::vec3(0.0f));
-  fs.triangles.resize(tri_count);
-  fs.material_ids.resize(tri_count);
-  fs.smooth.resize(tri_count);
-  fs.source_index.resize(tri_count);
+  g.positions.resize(vertex_count);
+  g.normals.assign(vertex_count, glm::vec3(0.0f));
+  g.triangles.resize(tri_count);
+  g.material_ids.resize(tri_count);
+  g.smooth.resize(tri_count);
+  g.source_index.resize(tri_count);
   std::size_t v_base = 0, t_base = 0;
   std::uint64_t source_base = 0;
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
@@ -70,21 +70,21 @@ void flatten(const Scene& scene, const FramePose& pose, FrameState& fs) {
     const bool identity = world == glm::dmat4(1.0);
     const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
     for (std::size_t i = 0; i < m.positions.size(); ++i) {
-      fs.positions[v_base + i] =
+      g.positions[v_base + i] =
           identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
       if (has_normals) {
         const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
         const double len = glm::length(n);
-        fs.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+        g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
       }
     }
     for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      fs.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
+      g.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
       const std::uint32_t mat = t < m.material_ids.size() ? m.material_ids[t] : 0u;
-      fs.material_ids[t_base + t] = mat < scene.materials.size() ? mat : 0u;
-      fs.smooth[t_base + t] = has_normals ? 1 : 0;
+      g.material_ids[t_base + t] = mat < scene.materials.size() ? mat : 0u;
+      g.smooth[t_base + t] = has_normals ? 1 : 0;
       const std::uint64_t src = t < m.source_index.size() ? m.source_index[t] : t;
-      fs.source_index[t_base + t] = static_cast<std::uint32_t>(source_base + src);
+      g.source_index[t_base + t] = static_cast<std::uint32_t>(source_base + src);
     }
     source_base += m.triangles.size() + m.dropped_degenerate;
     v_base += m.positions.size();
@@ -110,8 +110,10 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   fs->background = scene.background;
   fs->ambient = scene.ambient;
   fs->settings = settings;
-  flatten(scene, pose, *fs);
-  fs->tree = KdTree::build(fs->positions, fs->triangles, kd);
+  auto geometry = std::make_shared<FrameGeometry>();
+  flatten(scene, pose, *geometry);
+  geometry->tree = KdTree::build(geometry->positions, geometry->triangles, kd);
+  fs->geometry = std::move(geometry);
   return fs;
 }
 
@@ -126,12 +128,12 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
   const RenderSettings settings = options_.settings.value_or(scene_.settings);
   const FramePose pose = pose_at(scene_, frame);
   if (last_ && last_->frame == frame) return last_;
-  // Reuse the geometry and tree when no mesh moved: camera-only and light-only animations
-  // then cost no rebuild.
+  // Share the geometry and tree when no mesh moved: camera-only and light-only animations
+  // then cost no rebuild and no copy.
   if (last_) {
     const FramePose prev = pose_at(scene_, last_->frame);
     if (prev.world_from_object == pose.world_from_object) {
-      auto fs = std::make_shared<FrameState>(*last_);
+      auto fs = std::make_shared<FrameState>(*last_);  // shares last_->geometry
       fs->frame = frame;
       fs->camera = pose.camera;
       fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
@@ -141,14 +143,16 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     }
   }
   auto fs = build_frame_state(scene_, frame, settings, options_.kd);
-  spdlog::debug("frame {}: {}", frame, fs->tree.stats().to_string());
+  fs->tracer = options_.tracer;
+  spdlog::debug("frame {}: {}", frame, fs->geometry->tree.stats().to_string());
   last_ = std::move(fs);
   return last_;
 }
 
 void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h, Image& out,
                            TileRayCounts* counts) const {
-  if (w <= 0 || h <= 0 || x0 < 0 || y0 < 0 || x0 + w > state.width || y0 + h > state.height) {
+  if (w <= 0 || h <= 0 || x0 < 0 || y0 < 0 || std::int64_t{x0} + w > state.width ||
+      std::int64_t{y0} + h > state.height) {
     throw Error("render_tile: tile (" + std::to_string(x0) + ", " + std::to_string(y0) + ", " +
                 std::to_string(w) + "x" + std::to_string(h) + ") is outside the " +
                 std::to_string(state.width) + "x" + std::to_string(state.height) + " frame");
@@ -165,14 +169,14 @@ Image Renderer::render_frame(const FrameState& state, int tile_size, ProgressBar
                              TileRayCounts* counts) const {
   if (tile_size <= 0) throw Error("tile size must be positive, got " + std::to_string(tile_size));
   Image frame(state.width, state.height, options_.aovs, options_.aovs);
-  const int tiles_x = (state.width + tile_size - 1) / tile_size;
-  const int tiles_y = (state.height + tile_size - 1) / tile_size;
+  const std::int64_t tiles_x = (std::int64_t{state.width} + tile_size - 1) / tile_size;
+  const std::int64_t tiles_y = (std::int64_t{state.height} + tile_size - 1) / tile_size;
   tbb::enumerable_thread_specific<TileRayCounts> thread_counts;
-  tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1), [&](const tbb::blocked_range<int>& r) {
+  tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, tiles_x * tiles_y, 1), [&](const auto& r) {
     Image tile;
     TileRayCounts& mine = thread_counts.local();
-    for (int t = r.begin(); t != r.end(); ++t) {
-      const int x0 = (t % tiles_x) * tile_size, y0 = (t / tiles_x) * tile_size;
+    for (std::int64_t t = r.begin(); t != r.end(); ++t) {
+      const int x0 = static_cast<int>((t % tiles_x) * tile_size), y0 = static_cast<int>((t / tiles_x) * tile_size);
       const int w = std::min(tile_size, state.width - x0), h = std::min(tile_size, state.height - y0);
       render_tile(state, x0, y0, w, h, tile, &mine);
       frame.blit(tile, x0, y0);

@@ -22,6 +22,9 @@ struct RenderOptions {
   bool packets = true;                     ///< false: the single-ray (N = 1) kernels
   KdBuildOptions kd;
   bool aovs = true;                        ///< fill Image::depth and Image::normal
+  /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must
+  /// outlive the renderer.
+  const ExternalTracer* tracer = nullptr;
 };
 
 /// Renders tiles of frames of one scene. A pixel's value is a pure function of (scene, frame,

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,8 +23,8 @@
 #include "common/base/isa.h"
 #include "common/base/log.h"
 #include "common/base/timer.h"
-#include "common/math/ray_offset.h"
 #include "common/render/renderer.h"
+#include "common/render/shading.h"
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
@@ -88,8 +89,8 @@ RayStream primary_stream(const rtc::FrameState& fs, int width) {
   return s;
 }
 
-// Shadow rays from our primary hits to every light, as the renderer makes them: hit point from
-// the barycentrics, offset along the geometric normal towards the viewer, t in (0, 1).
+// Shadow rays from our primary hits to every light, made by the renderer's own code
+// (rtc::surface_at, rtc::shadow_ray), grouped per light in the primary packets' blocks.
 RayStream shadow_stream(const rtc::FrameState& fs, const RayStream& primary, const std::vector<RayHit>& hits) {
   RayStream s;
   s.width = primary.width;
@@ -104,19 +105,11 @@ RayStream shadow_stream(const rtc::FrameState& fs, const RayStream& primary, con
         for (int i = 0; i < w; ++i) {
           const std::size_t k = b + static_cast<std::size_t>(i);
           if (primary.pixel[k] < 0 || hits[k].prim == rtc::kNoHit) continue;
-          const glm::uvec3 t = fs.triangles[hits[k].prim];
-          const glm::vec3 a = fs.positions[t.x], bb = fs.positions[t.y], cc = fs.positions[t.z];
-          const float alpha = (1.0f - hits[k].beta) - hits[k].gamma;
-          const glm::vec3 p = (a * alpha + bb * hits[k].beta) + cc * hits[k].gamma;
-          glm::vec3 ng = glm::cross(bb - a, cc - a);
-          const float len = glm::length(ng);
-          if (!(len > 0.0f)) continue;
-          ng /= len;
-          if (glm::dot(ng, primary.rays[k].dir) > 0.0f) ng = -ng;
-          const glm::vec3 o = rtc::offset_ray_origin(p, ng, rtc::vertex_magnitude(a, bb, cc));
-          const glm::vec3 d = light.position - o;
-          if (!(glm::dot(d, ng) > 0.0f)) continue;
-          lane[i] = RayQuery{o, 0.0f, d, 1.0f};
+          const rtc::SurfaceSample surface =
+              rtc::surface_at(fs, primary.rays[k].dir, hits[k].prim, hits[k].beta, hits[k].gamma);
+          const std::optional<rtc::ShadowRay> ray = rtc::shadow_ray(surface, light);
+          if (!ray) continue;
+          lane[i] = ray->ray;
           want[i] = true;
           if (first_real < 0) first_real = i;
         }
@@ -131,6 +124,15 @@ RayStream shadow_stream(const rtc::FrameState& fs, const RayStream& primary, con
   }
   s.chunk_begin.push_back(s.rays.size());
   return s;
+}
+
+// The renderer's rays through Embree: 4-wide packet calls for the packets the renderer makes.
+EmbreeMode packet_mode(std::size_t count) { return count > 1 ? EmbreeMode::Packet4 : EmbreeMode::Single; }
+void embree_intersect(void* context, const RayQuery* rays, RayHit* hits, std::size_t count) {
+  static_cast<const EmbreeScene*>(context)->intersect(rays, hits, count, packet_mode(count));
+}
+void embree_occluded(void* context, const RayQuery* rays, std::uint8_t* out, std::size_t count) {
+  static_cast<const EmbreeScene*>(context)->occluded(rays, out, count, packet_mode(count));
 }
 
 template <typename Fn>
@@ -174,7 +176,7 @@ void write_dump(const std::string& prefix, const rtc::FrameState& fs, const std:
   for (std::size_t i = 0; i < hits.size(); ++i) {
     const bool hit = hits[i].prim != rtc::kNoHit;
     t[i] = hit ? hits[i].t : std::numeric_limits<float>::infinity();
-    prim[i] = hit ? fs.source_index[hits[i].prim] : 0xFFFFFFFFu;
+    prim[i] = hit ? fs.geometry->source_index[hits[i].prim] : 0xFFFFFFFFu;
   }
   auto write = [](const std::string& path, const void* data, std::size_t bytes) {
     std::ofstream f(path, std::ios::binary);
@@ -233,15 +235,15 @@ int run(int argc, char** argv) {
   const double build_ms = time_median_ms(reps, [&] {
     fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options);
   });
-  const rtc::KdBuildStats& kd = fs->tree.stats();
+  const rtc::KdBuildStats& kd = fs->geometry->tree.stats();
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
 
   std::unique_ptr<EmbreeScene> embree;
   double embree_build_ms = 0.0, embree_build_hq_ms = 0.0;
   if (compare) {
-    embree_build_ms = time_median_ms(reps, [&] { embree = std::make_unique<EmbreeScene>(fs->positions, fs->triangles); });
+    embree_build_ms = time_median_ms(reps, [&] { embree = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles); });
     embree_build_hq_ms = time_median_ms(std::min(reps, 3), [&] {
-      EmbreeScene hq(fs->positions, fs->triangles, false, true);
+      EmbreeScene hq(fs->geometry->positions, fs->geometry->triangles, false, true);
     });
   }
 
@@ -281,8 +283,8 @@ int run(int argc, char** argv) {
   std::vector<RayHit> hits(primary.rays.size());
   auto trace_primary = [&](bool packets) {
     for_chunks(primary, [&](std::size_t first, std::size_t n) {
-      kernels.intersect(fs->tree, primary.rays.data() + first, hits.data() + first, n, packets);
-      rtc::refine_hit_distances(fs->positions, fs->triangles, primary.rays.data() + first, hits.data() + first, n);
+      kernels.intersect(fs->geometry->tree, primary.rays.data() + first, hits.data() + first, n, packets);
+      rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, primary.rays.data() + first, hits.data() + first, n);
     });
   };
   trace_primary(true);
@@ -301,11 +303,11 @@ int run(int argc, char** argv) {
       auto ours = [&](bool packets) {
         for_chunks(s, [&](std::size_t first, std::size_t n) {
           if (shadow) {
-            kernels.occluded(fs->tree, s.rays.data() + first, occ.data() + first, n, packets);
+            kernels.occluded(fs->geometry->tree, s.rays.data() + first, occ.data() + first, n, packets);
           } else {
             // rtc reports refined distances, so their cost is part of the figure.
-            kernels.intersect(fs->tree, s.rays.data() + first, scratch.data() + first, n, packets);
-            rtc::refine_hit_distances(fs->positions, fs->triangles, s.rays.data() + first, scratch.data() + first, n);
+            kernels.intersect(fs->geometry->tree, s.rays.data() + first, scratch.data() + first, n, packets);
+            rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, s.rays.data() + first, scratch.data() + first, n);
           }
         });
       };
@@ -361,7 +363,7 @@ int run(int argc, char** argv) {
             const std::vector<RayHit> theirs = by_pixel(es, eh, pixels);
             const std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
             const rtc::test::HitComparison c =
-                rtc::test::compare_hits(fs->positions, fs->triangles, pr, our_pixels, theirs);
+                rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, our_pixels, theirs);
             m["hit_miss_agreement"] = c.hit_miss_agreement();
             m["same_triangle"] = c.same_prim;
             m["max_rel_dt"] = c.max_rel_t_same_prim;
@@ -386,12 +388,17 @@ int run(int argc, char** argv) {
       rtc::RenderOptions ro;
       ro.isa = isa;
       ro.kd = kd_options;
-      rtc::Renderer renderer(scene, ro);
+      auto time_frame = [&](const rtc::RenderOptions& options, rtc::TileRayCounts& counts, rtc::Image& image) {
+        rtc::Renderer renderer(scene, options);
+        const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(scene.animation.frame_begin);
+        return time_median_ms(reps, [&] {
+          counts = rtc::TileRayCounts{};
+          image = renderer.render_frame(*state, 32, nullptr, &counts);
+        });
+      };
       rtc::TileRayCounts counts;
-      const double ms = time_median_ms(reps, [&] {
-        counts = rtc::TileRayCounts{};
-        (void)renderer.render_frame(*fs, 32, nullptr, &counts);
-      });
+      rtc::Image ours;
+      const double ms = time_frame(ro, counts, ours);
       out["rays"] = counts.total();
       out["primary_rays"] = counts.primary;
       out["shadow_rays"] = counts.shadow;
@@ -405,7 +412,34 @@ int run(int argc, char** argv) {
                     ms, static_cast<double>(counts.total()) / ms / 1e3,
                     static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
                     static_cast<unsigned long long>(counts.reflection), fs->settings.max_depth);
-        if (compare) std::printf("          (an Embree-based renderer with the same shading comes with part 2)\n");
+      }
+      if (compare) {
+        // The same renderer and shading code, every ray traced by Embree (4-wide packets).
+        const rtc::ExternalTracer tracer{embree.get(), &embree_intersect, &embree_occluded};
+        rtc::RenderOptions eo = ro;
+        eo.tracer = &tracer;
+        rtc::TileRayCounts ecounts;
+        rtc::Image theirs;
+        const double ems = time_frame(eo, ecounts, theirs);
+        std::uint64_t differ = 0;
+        for (std::size_t i = 0; i < ours.rgba.size(); i += 4) {
+          for (int k = 0; k < 3; ++k) {
+            if (std::fabs(ours.rgba[i + k] - theirs.rgba[i + k]) > 1.0f / 255.0f) {
+              ++differ;
+              break;
+            }
+          }
+        }
+        const double frac = static_cast<double>(differ) / static_cast<double>(ours.rgba.size() / 4);
+        out["embree_frame_ms"] = ems;
+        out["embree_rays"] = ecounts.total();
+        out["ratio_vs_embree_frame"] = ems / ms;
+        out["embree_frame_pixels_differing"] = frac;
+        if (!json) {
+          std::printf("          embree-4 renderer, same shading: %.1f ms (%llu rays); rtc is %.2fx its speed; "
+                      "%.4f%% of pixels differ by more than 1/255\n",
+                      ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, 100.0 * frac);
+        }
       }
     }
     if (json) std::printf("%s\n", out.dump().c_str());

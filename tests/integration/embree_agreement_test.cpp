@@ -45,20 +45,20 @@ void check_against_embree(const Scene& scene, const std::string& label) {
     }
   }
   std::vector<RayHit> blocked_hits(blocked.size());
-  trace_kernels().intersect(fs->tree, blocked.data(), blocked_hits.data(), blocked.size(), true);
+  trace_kernels().intersect(fs->geometry->tree, blocked.data(), blocked_hits.data(), blocked.size(), true);
   for (std::size_t i = 0; i < blocked.size(); ++i) ours[index[i]] = blocked_hits[i];
-  trace_kernels().intersect(fs->tree, rays.data(), single.data(), rays.size(), false);
-  refine_hit_distances(fs->positions, fs->triangles, rays.data(), ours.data(), rays.size());
-  refine_hit_distances(fs->positions, fs->triangles, rays.data(), single.data(), rays.size());
+  trace_kernels().intersect(fs->geometry->tree, rays.data(), single.data(), rays.size(), false);
+  refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), ours.data(), rays.size());
+  refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), single.data(), rays.size());
   for (std::size_t i = 0; i < rays.size(); ++i) {
     ASSERT_EQ(std::memcmp(&ours[i], &single[i], sizeof(RayHit)), 0)
         << label << ": packet and single ray differ for " << test::describe_ray(rays[i]);
   }
 
-  const test::EmbreeScene embree(fs->positions, fs->triangles);
+  const test::EmbreeScene embree(fs->geometry->positions, fs->geometry->triangles);
   embree.intersect(rays.data(), theirs.data(), rays.size(), test::EmbreeMode::Single);
-  const test::HitComparison c = test::compare_hits(fs->positions, fs->triangles, rays, ours, theirs);
-  std::printf("%s (%zu triangles): %s\n", label.c_str(), fs->triangles.size(), c.summary().c_str());
+  const test::HitComparison c = test::compare_hits(fs->geometry->positions, fs->geometry->triangles, rays, ours, theirs);
+  std::printf("%s (%zu triangles): %s\n", label.c_str(), fs->geometry->triangles.size(), c.summary().c_str());
   for (std::size_t i : c.examples) {
     ADD_FAILURE() << label << ": pixel " << i % static_cast<std::size_t>(fs->width) << ","
                   << i / static_cast<std::size_t>(fs->width) << " " << test::describe_ray(rays[i])

@@ -1,0 +1,43 @@
+// Scalar shading geometry shared by the tile kernels and the benchmarks: the surface at a hit
+// and the shadow ray towards a light, computed the same way (same operations, same order)
+// wherever they are needed.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+
+#include <glm/glm.hpp>
+
+#include "common/accel/trace.h"
+#include "common/render/frame_state.h"
+
+namespace rtc {
+
+/// The surface where a ray hit triangle `prim` at barycentrics (beta, gamma).
+struct SurfaceSample {
+  glm::vec3 point{0.0f};      ///< hit point offset off the surface towards the incoming ray
+  glm::vec3 normal{0.0f};     ///< unit shading normal facing the incoming ray
+  glm::vec3 geometric{0.0f};  ///< unit geometric normal facing the incoming ray
+  glm::vec3 view{0.0f};       ///< unit vector back along the incoming ray
+  glm::vec3 dir{0.0f};        ///< the incoming ray's direction (as given)
+  const Material* material = nullptr;
+};
+
+/// Hit point interpolated from the barycentrics (not org + t dir), normals faced towards the
+/// ray (triangles are double sided), and the point offset along the geometric normal by
+/// offset_ray_origin (common/math/ray_offset.h). Never NaN: degenerate normals fall back to
+/// the geometric one.
+[[nodiscard]] SurfaceSample surface_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim,
+                                       float beta, float gamma);
+
+/// A shadow ray from a surface to a point light: origin = the offset hit point, dir = light -
+/// origin, t in (0, 1). `to_light` is the unit direction used for shading.
+struct ShadowRay {
+  RayQuery ray;
+  glm::vec3 to_light{0.0f};
+};
+
+/// Empty when the light is behind the geometric surface or the shading normal (it adds nothing).
+[[nodiscard]] std::optional<ShadowRay> shadow_ray(const SurfaceSample& surface, const PointLight& light);
+
+}  // namespace rtc
