@@ -7,7 +7,9 @@
 #include <cctype>
 #include <cstdio>
 #include <cstring>
+#include <cmath>
 #include <filesystem>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -101,6 +103,65 @@ INSTANTIATE_TEST_SUITE_P(
     view_test_name);
 
 TEST(GeneratedScene, DefaultSceneAgreesWithEmbree) { check_against_embree(default_scene(), "default scene"); }
+
+// A field of closed UV spheres of many sizes over a floor, plus a cloud of random slivers, seen
+// from a camera that also looks along the floor: shared edges, slivers, grazing rays.
+Scene generated_scene(std::uint32_t seed) {
+  SCOPED_TRACE("seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  Mesh mesh;
+  auto add_sphere = [&](glm::vec3 c, float r, int seg) {
+    const auto base = static_cast<unsigned>(mesh.positions.size());
+    for (int i = 0; i <= seg; ++i) {
+      for (int j = 0; j < 2 * seg; ++j) {
+        const float th = 3.14159265f * static_cast<float>(i) / static_cast<float>(seg);
+        const float ph = 3.14159265f * static_cast<float>(j) / static_cast<float>(seg);
+        mesh.positions.push_back(c + r * glm::vec3(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph)));
+      }
+    }
+    const auto ring = static_cast<unsigned>(2 * seg);
+    for (int i = 0; i < seg; ++i) {
+      for (unsigned j = 0; j < ring; ++j) {
+        const unsigned a = base + static_cast<unsigned>(i) * ring + j, b = base + static_cast<unsigned>(i) * ring + (j + 1) % ring;
+        if (i > 0) mesh.triangles.emplace_back(a, b, a + ring);
+        if (i < seg - 1) mesh.triangles.emplace_back(b, b + ring, a + ring);
+      }
+    }
+  };
+  for (int k = 0; k < 40; ++k) {
+    add_sphere(glm::vec3(u(rng) * 4.0f, u(rng) * 0.5f + 0.6f, u(rng) * 4.0f), 0.1f + 0.4f * (u(rng) + 1.0f), 8 + k % 12);
+  }
+  for (int k = 0; k < 2000; ++k) {
+    const glm::vec3 c(u(rng) * 4.0f, u(rng) + 1.0f, u(rng) * 4.0f);
+    const auto base = static_cast<unsigned>(mesh.positions.size());
+    mesh.positions.push_back(c);
+    mesh.positions.push_back(c + glm::vec3(u(rng), u(rng), u(rng)) * 0.3f);
+    mesh.positions.push_back(c + glm::vec3(u(rng), u(rng), u(rng)) * 0.01f);
+    mesh.triangles.emplace_back(base, base + 1, base + 2);
+  }
+  const auto base = static_cast<unsigned>(mesh.positions.size());
+  mesh.positions.insert(mesh.positions.end(), {{-6, 0, -6}, {6, 0, -6}, {6, 0, 6}, {-6, 0, 6}});
+  mesh.triangles.emplace_back(base, base + 2, base + 1);
+  mesh.triangles.emplace_back(base, base + 3, base + 2);
+  mesh.material_ids.assign(mesh.triangles.size(), 0);
+  for (std::uint32_t i = 0; i < mesh.triangles.size(); ++i) mesh.source_index.push_back(i);
+  Scene s;
+  s.name = "generated";
+  s.meshes.push_back(std::move(mesh));
+  s.materials.emplace_back();
+  s.camera.eye = {7.0f, 1.2f, 6.0f};
+  s.camera.look_at = {0.0f, 0.5f, 0.0f};
+  s.camera.up = {0.0f, 1.0f, 0.0f};
+  s.camera.vfov_deg = 50.0f;
+  s.width = 400;
+  s.height = 300;
+  return s;
+}
+
+TEST(GeneratedScene, SpheresAndSliversAgreeWithEmbree) {
+  for (std::uint32_t seed : {1u, 2u}) check_against_embree(generated_scene(seed), "generated seed " + std::to_string(seed));
+}
 
 }  // namespace
 }  // namespace rtc

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "common/accel/kd_tree.h"
@@ -21,6 +22,7 @@ struct Soup {
 };
 
 Soup random_soup(std::uint32_t seed, int count, float size) {
+  SCOPED_TRACE("random_soup seed " + std::to_string(seed));
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> pos(-1.0f, 1.0f), off(-size, size);
   Soup s;
@@ -101,6 +103,7 @@ bool reachable(const KdTree& tree, std::uint32_t index, const Aabb& b, std::uint
 }
 
 TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
+  // Seeds 7 and 11 (random soups), then a sphere on a grid.
   for (const Soup& s : {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f)}) {
     const KdTree tree = KdTree::build(s.positions, s.triangles);
     ASSERT_FALSE(tree.empty());
@@ -218,7 +221,9 @@ std::vector<RayHit> brute_force(const Soup& s, const std::vector<RayQuery>& rays
 TEST(KdTraversal, AgreesWithBruteForceDouble) {
   for (bool coherent : {true, false}) {
     for (const Soup& s : {random_soup(5, 2000, 0.1f), sphere_and_grid(20)}) {
-      const std::vector<RayQuery> rays = random_rays(coherent ? 17u : 19u, 20000, coherent);
+      const std::uint32_t seed = coherent ? 17u : 19u;
+      SCOPED_TRACE("random_rays seed " + std::to_string(seed));
+      const std::vector<RayQuery> rays = random_rays(seed, 20000, coherent);
       const KdTree tree = KdTree::build(s.positions, s.triangles);
       std::vector<RayHit> hits(rays.size());
       trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), true);
@@ -243,6 +248,7 @@ TEST(KdTraversal, PacketsAndSingleRaysGiveTheSameBits) {
   const Soup s = sphere_and_grid(32);
   const KdTree tree = KdTree::build(s.positions, s.triangles);
   for (bool coherent : {true, false}) {
+    SCOPED_TRACE("random_rays seed 23, coherent " + std::to_string(coherent));
     const std::vector<RayQuery> rays = random_rays(23, 40000, coherent);
     std::vector<RayHit> a(rays.size()), b(rays.size());
     std::vector<std::uint8_t> oa(rays.size()), ob(rays.size());
