@@ -58,6 +58,7 @@ class Builder {
   Builder(std::size_t triangle_count, const KdBuildOptions& options, int max_depth)
       : options_(options),
         max_depth_(max_depth),
+        triangle_count_(triangle_count),
         sides_([triangle_count] { return std::vector<std::uint8_t>(triangle_count, kBoth); }) {}
 
   std::unique_ptr<BuildNode> build(EventLists events, std::size_t count, const Aabb& box, int depth) {
@@ -114,35 +115,49 @@ class Builder {
     return cost;
   }
 
-  // One sweep per axis over the sorted events (Wald & Havran 2006, section 4.2).
-  [[nodiscard]] SplitChoice find_split(const EventLists& events, std::size_t count, const Aabb& box) const {
+  // One sweep over an axis's sorted events (Wald & Havran 2006, section 4.2).
+  [[nodiscard]] SplitChoice best_on_axis(const std::vector<Event>& ev, std::size_t count, const Aabb& box, int axis,
+                                         float inv_area) const {
     SplitChoice best;
-    const float area = box.area();
-    if (!(area > 0.0f)) return best;
-    const float inv_area = 1.0f / area;
-    for (int axis = 0; axis < 3; ++axis) {
-      if (!(box.hi[axis] > box.lo[axis])) continue;
-      const std::vector<Event>& ev = events[axis];
-      std::size_t n_left = 0, n_right = count;
-      for (std::size_t i = 0; i < ev.size();) {
-        const float pos = ev[i].pos;
-        std::size_t n_end = 0, n_planar = 0, n_start = 0;
-        for (; i < ev.size() && ev[i].pos == pos; ++i) {
-          const std::uint32_t t = ev[i].type();
-          n_end += t == kEnd;
-          n_planar += t == kPlanar;
-          n_start += t == kStart;
-        }
-        n_right -= n_planar + n_end;
-        if (pos > box.lo[axis] && pos < box.hi[axis]) {
-          const float cost_left = sah(box, axis, pos, n_left + n_planar, n_right, inv_area);
-          const float cost_right = sah(box, axis, pos, n_left, n_right + n_planar, inv_area);
-          const bool planar_left = cost_left <= cost_right;
-          const float cost = planar_left ? cost_left : cost_right;
-          if (cost < best.cost) best = SplitChoice{axis, pos, planar_left, cost};
-        }
-        n_left += n_start + n_planar;
+    if (!(box.hi[axis] > box.lo[axis])) return best;
+    std::size_t n_left = 0, n_right = count;
+    for (std::size_t i = 0; i < ev.size();) {
+      const float pos = ev[i].pos;
+      std::size_t n_end = 0, n_planar = 0, n_start = 0;
+      for (; i < ev.size() && ev[i].pos == pos; ++i) {
+        const std::uint32_t t = ev[i].type();
+        n_end += t == kEnd;
+        n_planar += t == kPlanar;
+        n_start += t == kStart;
       }
+      n_right -= n_planar + n_end;
+      if (pos > box.lo[axis] && pos < box.hi[axis]) {
+        const float cost_left = sah(box, axis, pos, n_left + n_planar, n_right, inv_area);
+        const float cost_right = sah(box, axis, pos, n_left, n_right + n_planar, inv_area);
+        const bool planar_left = cost_left <= cost_right;
+        const float cost = planar_left ? cost_left : cost_right;
+        if (cost < best.cost) best = SplitChoice{axis, pos, planar_left, cost};
+      }
+      n_left += n_start + n_planar;
+    }
+    return best;
+  }
+
+  // The best plane over the three axes; big nodes sweep the axes in parallel. Either way the
+  // earliest axis wins a tie, so the tree does not depend on the thread count.
+  [[nodiscard]] SplitChoice find_split(const EventLists& events, std::size_t count, const Aabb& box) const {
+    const float area = box.area();
+    if (!(area > 0.0f)) return SplitChoice{};
+    const float inv_area = 1.0f / area;
+    SplitChoice per_axis[3];
+    if (count >= kBigNode) {
+      tbb::parallel_for(0, 3, [&](int axis) { per_axis[axis] = best_on_axis(events[axis], count, box, axis, inv_area); });
+    } else {
+      for (int axis = 0; axis < 3; ++axis) per_axis[axis] = best_on_axis(events[axis], count, box, axis, inv_area);
+    }
+    SplitChoice best;
+    for (const SplitChoice& c : per_axis) {
+      if (c.cost < best.cost) best = c;
     }
     return best;
   }
@@ -153,9 +168,14 @@ class Builder {
   void partition(const EventLists& events, const SplitChoice& split, EventLists& left, EventLists& right,
                  std::size_t& left_count, std::size_t& right_count) {
     // Each thread has its own side table: a triangle that straddles a plane lives in two
-    // subtrees that may be partitioned at the same time on different threads. Nothing in this
-    // function waits on other tasks, so one thread never interleaves two partitions.
-    std::vector<std::uint8_t>& side = sides_.local();
+    // subtrees that may be partitioned at the same time on different threads. Small nodes
+    // never wait on other tasks here, so one thread never interleaves two partitions; big
+    // nodes split their three lists in parallel (and so may wait), so they get a table of
+    // their own.
+    const bool big = left_count_hint(events) >= kBigNode;
+    std::vector<std::uint8_t> own;
+    if (big) own.assign(triangle_count_, kBoth);
+    std::vector<std::uint8_t>& side = big ? own : sides_.local();
     const std::vector<Event>& axis_events = events[split.axis];
     for (const Event& e : axis_events) side[e.tri()] = kBoth;
     for (const Event& e : axis_events) {
@@ -181,7 +201,7 @@ class Builder {
       left_count += s != kRight;
       right_count += s != kLeft;
     }
-    for (int axis = 0; axis < 3; ++axis) {
+    auto split_list = [&](int axis) {
       const std::vector<Event>& ev = events[axis];
       // Count first so each child list is allocated once at its exact size.
       std::size_t n_left = 0, n_right = 0;
@@ -215,11 +235,23 @@ class Builder {
             }
         }
       }
+    };
+    if (big) {
+      tbb::parallel_for(0, 3, split_list);
+    } else {
+      for (int axis = 0; axis < 3; ++axis) split_list(axis);
     }
   }
 
+  // Triangles in a node: each has one start or planar event per axis list.
+  static std::size_t left_count_hint(const EventLists& events) { return (events[0].size() + 1) / 2; }
+
+  // Nodes with at least this many triangles sweep and split their three lists in parallel.
+  static constexpr std::size_t kBigNode = 32768;
+
   const KdBuildOptions& options_;
   int max_depth_;
+  std::size_t triangle_count_;
   tbb::enumerable_thread_specific<std::vector<std::uint8_t>> sides_;
 };
 
