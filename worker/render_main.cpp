@@ -46,6 +46,7 @@ FrameRange parse_frames(const std::string& text) {
     throw rtc::Error("--frames: expected A-B or A, got \"" + text + "\"");
   }
   if (r.last < r.first) throw rtc::Error("--frames: " + text + " is an empty range");
+  if (r.first < 0) throw rtc::Error("--frames: " + text + ": frame numbers must be >= 0");
   return r;
 }
 
@@ -81,6 +82,17 @@ int run(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   rtc::init_logging(log_level);
+  // Options are checked before the (possibly long) scene load.
+  std::optional<rtc::Isa> isa;
+  if (!isa_text.empty()) {
+    try {
+      isa = rtc::parse_isa(isa_text);
+    } catch (const rtc::Error& e) {
+      throw rtc::Error(std::string("--isa: ") + e.what());
+    }
+  }
+  std::optional<FrameRange> requested_frames;
+  if (!frames_text.empty()) requested_frames = parse_frames(frames_text);
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -98,16 +110,21 @@ int run(int argc, char** argv) {
                scene_path.empty() ? "(built-in default)" : scene_path, scene.meshes.size(),
                scene.triangle_count(), scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
 
-  FrameRange frames{scene.animation.frame_begin, scene.animation.frame_end};
-  if (!frames_text.empty()) frames = parse_frames(frames_text);
+  const FrameRange frames = requested_frames.value_or(FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
   if (out_pattern.empty()) {
     out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");
     std::filesystem::create_directories("out");
   }
+  // A bad pattern or a missing output folder is reported before anything is rendered.
+  const std::filesystem::path first_out(rtc::expand_frame_pattern(out_pattern, frames.first, multiple));
+  const std::filesystem::path out_dir = first_out.parent_path().empty() ? "." : first_out.parent_path();
+  if (!std::filesystem::is_directory(out_dir)) {
+    throw rtc::Error("--out: " + first_out.string() + ": folder " + out_dir.string() + " does not exist");
+  }
 
   rtc::RenderOptions options;
-  if (!isa_text.empty()) options.isa = rtc::parse_isa(isa_text);
+  options.isa = isa;
   options.packets = !single_rays;
   rtc::Renderer renderer(std::move(scene), options);
   spdlog::info("kernels: {} ({}), {} threads", rtc::isa_name(renderer.isa()),

@@ -1,0 +1,443 @@
+#!/usr/bin/env bash
+# Command-line checks: runs rtc-render and rtc-bench as a user would and asserts exit statuses,
+# messages and the files written. One case per ctest entry (tests/cli/CMakeLists.txt).
+#
+# usage: cli_test.sh CASE RTC_RENDER [RTC_BENCH]
+set -u -o pipefail
+
+if [[ $# -lt 2 ]]; then
+  echo "usage: $0 CASE RTC_RENDER [RTC_BENCH]" >&2
+  exit 2
+fi
+readonly test_case=$1
+readonly render=$2
+readonly bench=${3:-}
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/rtc-cli-${test_case}.XXXXXX") || exit 2
+readonly work
+trap 'rm -rf "$work"' EXIT
+
+fail() {
+  echo "FAIL [$test_case]: $*" >&2
+  exit 1
+}
+
+# run NAME CMD...: runs CMD with stdout/stderr in $work/NAME.out / NAME.err; status in $rc.
+rc=0
+run() {
+  local name=$1
+  shift
+  "$@" >"$work/$name.out" 2>"$work/$name.err"
+  rc=$?
+}
+
+show() {
+  local name=$1
+  echo "--- stdout of $name:"
+  cat "$work/$name.out"
+  echo "--- stderr of $name:"
+  cat "$work/$name.err"
+}
+
+expect_rc() {
+  local name=$1 want=$2
+  if [[ $rc -ne $want ]]; then
+    show "$name" >&2
+    if [[ $rc -gt 128 ]]; then
+      fail "$name: exit status $rc (killed by signal $((rc - 128))), expected $want"
+    fi
+    fail "$name: exit status $rc, expected $want"
+  fi
+}
+
+# expect_in NAME out|err TEXT: the stream holds TEXT (fixed string).
+expect_in() {
+  local name=$1 stream=$2 text=$3
+  if ! grep -qF -- "$text" "$work/$name.$stream"; then
+    show "$name" >&2
+    fail "$name: std$stream lacks \"$text\""
+  fi
+}
+
+# expect_error NAME TEXT... -- CMD...: CMD exits with status 1 (not a signal, not an abort),
+# prints one "PROGRAM: error: ..." line on stderr holding every TEXT, and nothing on stdout.
+expect_error() {
+  local name=$1
+  shift
+  local texts=()
+  while [[ $1 != "--" ]]; do
+    texts+=("$1")
+    shift
+  done
+  shift
+  run "$name" "$@"
+  expect_rc "$name" 1
+  local program line text
+  program=$(basename "$1")
+  if [[ $(grep -cF -- "$program: error: " "$work/$name.err") -ne 1 ]]; then
+    show "$name" >&2
+    fail "$name: expected one \"$program: error: ...\" line on stderr"
+  fi
+  line=$(grep -F -- "$program: error: " "$work/$name.err")
+  for text in "${texts[@]}"; do
+    if [[ $line != *"$text"* ]]; then
+      show "$name" >&2
+      fail "$name: the error line lacks \"$text\""
+    fi
+  done
+  for text in "internal check failed" "terminate called" "Sanitizer" "core dumped"; do
+    if grep -qF -- "$text" "$work/$name.err"; then
+      show "$name" >&2
+      fail "$name: stderr shows a crash (\"$text\")"
+    fi
+  done
+  if [[ -s $work/$name.out ]]; then
+    show "$name" >&2
+    fail "$name: a failed run printed a summary on stdout"
+  fi
+}
+
+# A tiny scene of its own (no dependence on ../shared/scenes): a floor given as one quad
+# (fanned: triangles 0, 1), a degenerate face (2, dropped by the loader but still counted in
+# the ids), a tetrahedron (3-6) and a pentagon standing behind it (7-9). Faces are listed in
+# the OBJ in this order, so these are the ids rtc-bench --dump reports.
+write_small_scene() {
+  cat >"$work/tiny.obj" <<'EOF'
+# rtc CLI test scene
+v -2 0 -2
+v 2 0 -2
+v 2 0 2
+v -2 0 2
+v -0.6 0.1 0.4
+v 0.6 0.1 0.5
+v 0.1 0.2 -0.6
+v 0.05 1.1 0.1
+v -1.5 0.2 -1.2
+v -0.5 0.3 -1.3
+v -0.3 1.0 -1.3
+v -1.0 1.5 -1.2
+v -1.7 0.9 -1.2
+f 1 4 3 2
+f 1 1 2
+f 5 6 8
+f 6 7 8
+f 7 5 8
+f 5 7 6
+f 9 10 11 12 13
+EOF
+  cat >"$work/view.json" <<'EOF'
+{
+  "name": "tiny_cli",
+  "mesh": "tiny.obj",
+  "camera": {"eye": [0.3, 1.5, 5.0], "look_at": [0.0, 0.3, 0.0], "up": [0, 1, 0], "vfov_deg": 40},
+  "lights": [{"position": [3, 5, 4], "color": [1, 1, 1]}],
+  "resolution": [40, 30]
+}
+EOF
+}
+
+# expect_only_image PATH: PATH is the one file in $work besides the logs of run(): the
+# temporary file it was written to (.NAME.tmp-PID-...) was renamed, not left behind.
+expect_only_image() {
+  local files
+  files=$(find "$work" -mindepth 1 -maxdepth 1 ! -name '*.out' ! -name '*.err')
+  [[ $files == "$1" ]] || { ls -la "$work" >&2; fail "expected only $1 in $work"; }
+}
+
+case_render_png() {
+  local out="$work/f.png"
+  run render "$render" --frames 0 --width 64 --height 48 --out "$out"
+  expect_rc render 0
+  expect_in render out "frame 0: wrote $out (64x48)"
+  [[ $(grep -c '^frame ' "$work/render.out") -eq 1 ]] || { show render >&2; fail "expected one summary line"; }
+  [[ -f $out ]] || fail "$out was not written"
+  run info oiiotool --info "$out"
+  expect_rc info 0
+  expect_in info out "64 x   48, 4 channel, uint8 png"
+  expect_only_image "$out"
+}
+
+case_render_exr() {
+  local out="$work/f.exr"
+  run render "$render" --frames 0 --width 64 --height 48 --out "$out"
+  expect_rc render 0
+  expect_in render out "frame 0: wrote $out (64x48)"
+  run info oiiotool --info -v "$out"
+  expect_rc info 0
+  expect_in info out "64 x   48, 8 channel"
+  expect_in info out "channel list: R (half), G (half), B (half), A (half), Z (float), N.X (half), N.Y (half), N.Z (half)"
+  expect_only_image "$out"
+  run render_float "$render" --frames 0 --width 64 --height 48 --exr-float --out "$work/g.exr"
+  expect_rc render_float 0
+  run info_float oiiotool --info -v "$work/g.exr"
+  # oiiotool lists the types per channel only when they differ.
+  expect_in info_float out "64 x   48, 8 channel, float openexr"
+  expect_in info_float out "channel list: R, G, B, A, Z, N.X, N.Y, N.Z"
+}
+
+case_missing_scene() {
+  expect_error missing "$work/no_such_scene.json" "cannot open" -- \
+    "$render" "$work/no_such_scene.json" --frames 0 --width 8 --height 8 --out "$work/o.png"
+  [[ ! -e $work/o.png ]] || fail "an image was written for a missing scene"
+}
+
+case_unknown_json_field() {
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$work/tri.obj"
+  cat >"$work/scene.json" <<'EOF'
+{"mesh": "tri.obj", "lights": [{"position": [0, 0, 5], "colour": [1, 1, 1]}]}
+EOF
+  expect_error unknown "$work/scene.json" 'unknown field "lights[0].colour"' -- \
+    "$render" "$work/scene.json" --frames 0 --width 8 --height 8 --out "$work/o.png"
+  printf '{"mesh": "tri.obj", "resolution": [8, 8], "shutter": 1}\n' >"$work/top.json"
+  expect_error unknown_top "$work/top.json" 'unknown field "shutter"' -- \
+    "$render" "$work/top.json" --frames 0 --out "$work/o.png"
+  [[ ! -e $work/o.png ]] || fail "an image was written for a bad scene"
+}
+
+case_obj_index_out_of_range() {
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\n# the next face is fine, the one after it is not\nf 1 2 3\nf 1 2 7\n' \
+    >"$work/bad.obj"
+  expect_error obj "$work/bad.obj:6:" "index 7" "out of range" -- \
+    "$render" "$work/bad.obj" --frames 0 --width 8 --height 8 --out "$work/o.png"
+}
+
+case_truncated_ply() {
+  python3 - "$work/trunc.ply" <<'EOF' || fail "could not write the PLY"
+import struct, sys
+header = (b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+          b"property float x\nproperty float y\nproperty float z\n"
+          b"element face 1\nproperty list uchar int vertex_indices\nend_header\n")
+body = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<B3i", 3, 0, 1, 2)
+# Cut inside the second vertex.
+open(sys.argv[1], "wb").write(header + body[:20])
+EOF
+  expect_error ply "$work/trunc.ply" "truncated" -- \
+    "$render" "$work/trunc.ply" --frames 0 --width 8 --height 8 --out "$work/o.png"
+}
+
+case_empty_frame_range() {
+  expect_error frames "--frames" "5-2" "empty range" -- \
+    "$render" --frames 5-2 --width 8 --height 8 --out "$work/o_####.png"
+  [[ -z $(find "$work" -name 'o_*') ]] || fail "frames were written for an empty range"
+}
+
+case_missing_out_folder() {
+  expect_error out_folder "$work/missing/f.png" "$work/missing" "does not exist" -- \
+    "$render" --frames 0 --width 16 --height 16 --out "$work/missing/f.png"
+  [[ ! -e $work/missing ]] || fail "the missing folder was created"
+}
+
+case_bad_isa() {
+  expect_error isa '"avx9"' "unknown ISA" -- \
+    "$render" --frames 0 --width 8 --height 8 --isa avx9 --out "$work/o.png"
+  [[ ! -e $work/o.png ]] || fail "an image was written with a bad --isa"
+}
+
+case_bench_json_dump() {
+  [[ -n $bench ]] || fail "no rtc-bench given"
+  write_small_scene
+  run bench "$bench" "$work/view.json" --json --mode primary --reps 1 --dump "$work/tiny"
+  expect_rc bench 0
+  [[ -s $work/bench.out ]] || { show bench >&2; fail "no JSON printed"; }
+  python3 - "$work" <<'EOF' || { show bench >&2; fail "rtc-bench JSON or dump check failed"; }
+import json, math, os, struct, sys
+
+work = sys.argv[1]
+W, H = 40, 30
+errors = []
+
+lines = open(os.path.join(work, "bench.out")).read().splitlines()
+if len(lines) != 1:
+    errors.append(f"expected one JSON line for one mode, got {len(lines)}")
+for n, line in enumerate(lines, 1):
+    try:
+        obj = json.loads(line)
+    except json.JSONDecodeError as e:
+        errors.append(f"line {n} is not JSON ({e}): {line!r}")
+        continue
+    for field in ("scene", "mode", "threads", "isa", "width", "height", "rays", "build_ms",
+                  "mrays_per_s", "frame_ms"):
+        if field not in obj:
+            errors.append(f"line {n}: no field {field!r}")
+    want = {"scene": "tiny_cli", "mode": "primary", "width": W, "height": H, "rays": W * H}
+    for field, value in want.items():
+        if obj.get(field) != value:
+            errors.append(f"line {n}: {field} = {obj.get(field)!r}, expected {value!r}")
+    if not (isinstance(obj.get("threads"), int) and obj["threads"] >= 1):
+        errors.append(f"line {n}: threads = {obj.get('threads')!r}")
+    if not (isinstance(obj.get("isa"), str) and obj["isa"]):
+        errors.append(f"line {n}: isa = {obj.get('isa')!r}")
+    for field in ("build_ms", "mrays_per_s", "frame_ms"):
+        v = obj.get(field)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            errors.append(f"line {n}: {field} = {v!r} is not a finite non-negative number")
+
+# The dump: row 0 at the top, W*H little-endian float32 / uint32.
+t_bytes = open(os.path.join(work, "tiny.t.f32"), "rb").read()
+p_bytes = open(os.path.join(work, "tiny.prim.u32"), "rb").read()
+for name, data in (("tiny.t.f32", t_bytes), ("tiny.prim.u32", p_bytes)):
+    if len(data) != W * H * 4:
+        errors.append(f"{name}: {len(data)} bytes, expected {W * H * 4}")
+if errors:
+    print("\n".join(errors))
+    sys.exit(1)
+ts = struct.unpack(f"<{W * H}f", t_bytes)
+prims = struct.unpack(f"<{W * H}I", p_bytes)
+
+# Triangles in file order after fanning, the degenerate one included (it keeps its id).
+verts, tris = [], []
+for raw in open(os.path.join(work, "tiny.obj")):
+    f = raw.split()
+    if f and f[0] == "v":
+        verts.append(tuple(float(x) for x in f[1:4]))
+    elif f and f[0] == "f":
+        idx = [int(x) - 1 for x in f[1:]]
+        for k in range(1, len(idx) - 1):
+            tris.append((idx[0], idx[k], idx[k + 1]))
+DEGENERATE = 2
+assert len(tris) == 10 and len(set(tris[DEGENERATE])) < 3
+
+# CAMERA.md rays in double, and a brute-force closest hit (Moeller-Trumbore in double) with a
+# margin: pixels whose hit lies within `margin` of an edge or tie with another triangle are
+# not compared, everything else must match exactly in id and closely in t.
+def sub(a, b): return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+def dot(a, b): return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+def cross(a, b): return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+def norm(a):
+    l = math.sqrt(dot(a, a))
+    return (a[0] / l, a[1] / l, a[2] / l)
+
+eye, look_at, up, vfov = (0.3, 1.5, 5.0), (0.0, 0.3, 0.0), (0.0, 1.0, 0.0), 40.0
+fwd = norm(sub(look_at, eye))
+right = norm(cross(fwd, up))
+up2 = cross(right, fwd)
+h = math.tan(math.radians(vfov) / 2)
+margin = 1e-3
+
+# Every triangle the ray meets at t > 0 with all barycentrics >= -margin, as
+# (t, id, smallest barycentric): a negative or small last entry is a near-edge candidate.
+def trace(o, d):
+    found = []
+    for i, (a, b, c) in enumerate(tris):
+        if i == DEGENERATE:
+            continue
+        A, B, C = verts[a], verts[b], verts[c]
+        e1, e2 = sub(B, A), sub(C, A)
+        p = cross(d, e2)
+        det = dot(e1, p)
+        if abs(det) < 1e-12:
+            continue
+        s = sub(o, A)
+        u = dot(s, p) / det
+        q = cross(s, e1)
+        v = dot(d, q) / det
+        t = dot(e2, q) / det
+        edge = min(u, v, 1 - u - v)
+        if edge >= -margin and t > 0:
+            found.append((t, i, edge))
+    found.sort()
+    return found
+
+hits = misses = compared = 0
+for y in range(H):
+    for x in range(W):
+        i = y * W + x
+        t, prim = ts[i], prims[i]
+        miss = prim == 0xFFFFFFFF
+        if miss != math.isinf(t) or (math.isinf(t) and t < 0) or math.isnan(t):
+            errors.append(f"pixel ({x}, {y}): t = {t!r} with prim {prim:#x} (a miss is +inf with 0xFFFFFFFF)")
+            continue
+        if miss:
+            misses += 1
+        else:
+            hits += 1
+            if not (prim < len(tris) and prim != DEGENERATE):
+                errors.append(f"pixel ({x}, {y}): triangle id {prim} is not one of the file's triangles")
+            if not (t > 0):
+                errors.append(f"pixel ({x}, {y}): hit at t = {t!r}")
+        sx = (2 * (x + 0.5) / W - 1) * h * (W / H)
+        sy = (1 - 2 * (y + 0.5) / H) * h
+        d = norm(tuple(fwd[k] + sx * right[k] + sy * up2[k] for k in range(3)))
+        found = trace(eye, d)
+        solid = [f for f in found if f[2] >= 0]
+        t_solid = solid[0][0] if solid else math.inf
+        # Not compared: a near-edge candidate at or before the closest solid hit, or two
+        # solid hits at nearly the same distance.
+        if any(f[2] < margin and f[0] <= t_solid * (1 + margin) for f in found):
+            continue
+        if len(solid) > 1 and solid[1][0] - t_solid < margin * t_solid:
+            continue
+        compared += 1
+        if solid:
+            p0 = solid[0][1]
+            if prim != p0 or abs(t - t_solid) > 1e-5 * t_solid:
+                errors.append(f"pixel ({x}, {y}): rtc gives triangle {prim} at t = {t!r}, "
+                              f"brute force triangle {p0} at t = {t_solid!r}")
+        elif not miss:
+            errors.append(f"pixel ({x}, {y}): rtc hits triangle {prim} at t = {t!r}, brute force misses")
+
+if hits == 0 or misses == 0:
+    errors.append(f"the scene should give both hits and misses: {hits} hits, {misses} misses")
+if compared < W * H * 0.9:
+    errors.append(f"only {compared} of {W * H} pixels were clear enough to compare")
+if errors:
+    print("\n".join(errors[:20]))
+    if len(errors) > 20:
+        print(f"... and {len(errors) - 20} more")
+    sys.exit(1)
+print(f"dump ok: {hits} hits, {misses} misses, {compared} pixels checked against brute force")
+EOF
+}
+
+case_bench_embree() {
+  [[ -n $bench ]] || fail "no rtc-bench given"
+  write_small_scene
+  run bench "$bench" "$work/view.json" --json --mode primary --reps 1 --compare-embree
+  expect_rc bench 0
+  python3 - "$work/bench.out" <<'EOF' || { show bench >&2; fail "Embree agreement check failed"; }
+import json, sys
+lines = open(sys.argv[1]).read().splitlines()
+assert len(lines) == 1, f"expected one JSON line, got {len(lines)}"
+obj = json.loads(lines[0])
+emb = obj.get("embree")
+assert isinstance(emb, dict) and "embree-1" in emb, f"no embree-1 figures: {emb!r}"
+single = emb["embree-1"]
+agreement = single.get("hit_miss_agreement")
+assert agreement == 1.0, f"embree-1 hit_miss_agreement = {agreement!r}, expected 1.0"
+assert single.get("unexplained") == 0, f"embree-1 unexplained = {single.get('unexplained')!r}"
+for mode, figures in emb.items():
+    assert figures.get("hit_miss_agreement") == 1.0, f"{mode}: {figures!r}"
+print(f"embree agreement ok: {single}")
+EOF
+}
+
+case_deterministic_across_processes() {
+  local common=(--frames 3 --exr-float)
+  run a "$render" "${common[@]}" --threads 1 --tile 7 --out "$work/a.exr"
+  expect_rc a 0
+  run b "$render" "${common[@]}" --threads 2 --tile 64 --out "$work/b.exr"
+  expect_rc b 0
+  run c "$render" "${common[@]}" --single-rays --out "$work/c.exr"
+  expect_rc c 0
+  local other
+  for other in b c; do
+    run "diff_$other" oiiotool "$work/a.exr" "$work/$other.exr" --fail 0 --warn 0 --diff
+    if [[ $rc -ne 0 ]]; then
+      show "$other" >&2
+      show "diff_$other" >&2
+      fail "frame 3 differs between '--threads 1 --tile 7' (a) and run $other"
+    fi
+  done
+  # The comparison can fail: frame 4 (the gold sphere has moved) must differ from frame 3.
+  run d "$render" --frames 4 --exr-float --out "$work/d.exr"
+  expect_rc d 0
+  run diff_d oiiotool "$work/a.exr" "$work/d.exr" --fail 0 --warn 0 --diff
+  [[ $rc -ne 0 ]] || fail "frames 3 and 4 compare equal: the diff check is not checking"
+}
+
+if ! declare -F "case_$test_case" >/dev/null; then
+  echo "unknown case '$test_case'" >&2
+  exit 2
+fi
+"case_$test_case"
+echo "PASS [$test_case]"
