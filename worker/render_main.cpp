@@ -58,7 +58,7 @@ int run(int argc, char** argv) {
   int width = 0, height = 0, threads = 0, spp = 0, tile = 32, max_depth = -1;
   float min_weight = -1.0f;
   std::string isa_text, log_level = "info";
-  bool exr_float = false, single_rays = false;
+  bool exr_float = false, single_rays = false, no_depth = false, no_normal = false;
   app.add_option("scene", scene_path,
                  "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
                  "omitted: the built-in default scene");
@@ -78,6 +78,8 @@ int run(int argc, char** argv) {
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of 2x2 packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
+  app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
+  app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
   CLI11_PARSE(app, argc, argv);
 
@@ -126,6 +128,7 @@ int run(int argc, char** argv) {
   rtc::RenderOptions options;
   options.isa = isa;
   options.packets = !single_rays;
+  options.aovs = !(no_depth && no_normal);
   rtc::Renderer renderer(std::move(scene), options);
   spdlog::info("kernels: {} ({}), {} threads", rtc::isa_name(renderer.isa()),
                single_rays ? "single rays" : "2x2 packets",
@@ -133,6 +136,8 @@ int run(int argc, char** argv) {
 
   rtc::ImageWriteOptions write_options;
   write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
+  write_options.write_depth = !no_depth;
+  write_options.write_normal = !no_normal;
   const bool tty = isatty(STDERR_FILENO) != 0;
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
