@@ -1,8 +1,10 @@
 // The procedural scene compiled into the program: a checkered floor, three mirror-like spheres
 // (one of them animated), a torus, two boxes and a pillar; about 38k triangles, two lights.
+// Angles go through det_math, so the scene is the same bits on every CPU.
 #include <cmath>
 #include <string>
 
+#include "common/math/det_math.h"
 #include "common/scene/load.h"
 #include "common/scene/load_internal.h"
 #include "common/scene/mesh_builder.h"
@@ -56,8 +58,9 @@ Mesh make_torus(double major, double minor, int around, int tube) {
     const double u = 2.0 * kPi * i / around;
     for (int j = 0; j < tube; ++j) {
       const double v = 2.0 * kPi * j / tube;
-      const glm::dvec3 normal(std::cos(v) * std::cos(u), std::sin(v), std::cos(v) * std::sin(u));
-      const glm::dvec3 center(major * std::cos(u), 0.0, major * std::sin(u));
+      const double cos_u = det_cos(u), sin_u = det_sin(u), cos_v = det_cos(v);
+      const glm::dvec3 normal(cos_v * cos_u, det_sin(v), cos_v * sin_u);
+      const glm::dvec3 center(major * cos_u, 0.0, major * sin_u);
       builder.add_vertex(glm::vec3(center + minor * normal), glm::vec3(normal));
     }
   }
@@ -103,7 +106,7 @@ Transform placed(glm::vec3 translate, float degrees_about_y = 0.0f,
   Transform t;
   t.translate = translate;
   const glm::dquat q =
-      glm::angleAxis(glm::radians(static_cast<double>(degrees_about_y)), glm::dvec3(0.0, 1.0, 0.0));
+      rotation_deg_axis(static_cast<double>(degrees_about_y), glm::dvec3(0.0, 1.0, 0.0));
   t.rotate = glm::quat(static_cast<float>(q.w), static_cast<float>(q.x), static_cast<float>(q.y),
                        static_cast<float>(q.z));
   t.scale = scale;

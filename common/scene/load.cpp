@@ -4,10 +4,14 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 #include <string>
+
+#include <fmt/format.h>
 
 #include "common/base/error.h"
 #include "common/base/log.h"
+#include "common/math/det_math.h"
 #include "common/scene/load_internal.h"
 #include "common/scene/mesh_file.h"
 
@@ -34,8 +38,9 @@ void place_auto_camera(Scene& scene) {
   glm::dvec3 center(0.0);
   double radius = 1.0;
   if (!box.empty()) {
-    center = glm::dvec3(box.center());
-    radius = 0.5 * glm::length(glm::dvec3(box.extent()));
+    // In double: hi - lo in float overflows for boxes spanning more than the float range.
+    center = 0.5 * (glm::dvec3(box.lo) + glm::dvec3(box.hi));
+    radius = 0.5 * glm::length(glm::dvec3(box.hi) - glm::dvec3(box.lo));
     if (!(radius > 0.0)) radius = 1.0;
   }
   constexpr double kVfovDeg = 45.0;
@@ -43,11 +48,19 @@ void place_auto_camera(Scene& scene) {
   // The bounding sphere must fit the narrower of the two fields of view.
   const double aspect = static_cast<double>(scene.width) / static_cast<double>(scene.height);
   const double half_v = kVfovDeg * kPi / 360.0;
-  const double half_h = std::atan(std::tan(half_v) * aspect);
+  const double half_h = det_atan2(det_tan(half_v) * aspect, 1.0);
   const double half = std::min(half_v, half_h);
-  const double distance = 1.05 * radius / std::sin(half);  // 5 % margin
+  const double distance = 1.05 * radius / det_sin(half);  // 5 % margin
   const glm::dvec3 direction = glm::normalize(glm::dvec3(0.4, 0.6, 1.0));
-  scene.camera.eye = glm::vec3(center + distance * direction);
+  const glm::dvec3 eye = center + distance * direction;
+  const double float_max = std::numeric_limits<float>::max();
+  if (!(std::abs(eye.x) <= float_max && std::abs(eye.y) <= float_max &&
+        std::abs(eye.z) <= float_max)) {
+    throw Error(fmt::format("{}: the scene is too large for the automatic camera (bounding "
+                            "radius {:.3g}); give a camera",
+                            scene.source.empty() ? scene.name : scene.source.string(), radius));
+  }
+  scene.camera.eye = glm::vec3(eye);
   scene.camera.look_at = glm::vec3(center);
   scene.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
   scene.camera.vfov_deg = static_cast<float>(kVfovDeg);

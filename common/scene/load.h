@@ -19,6 +19,7 @@ namespace rtc {
 [[nodiscard]] Scene default_scene();
 
 /// Places a camera that frames `bounds` and a default light, as used for bare mesh files.
+/// Throws rtc::Error when the scene is too large for the camera to sit within float range.
 void frame_automatically(Scene& scene);
 
 }  // namespace rtc

@@ -19,7 +19,8 @@ namespace rtc {
 std::uint32_t append_mesh(Scene& scene, Mesh mesh, const std::vector<Material>& materials);
 
 /// Points `scene.camera` at scene.bounds() (vfov 45, from the +x/+y/+z side, whole bounding
-/// sphere in view at scene.width x scene.height).
+/// sphere in view at scene.width x scene.height). Throws rtc::Error when the eye would lie
+/// beyond the float range.
 void place_auto_camera(Scene& scene);
 
 /// Appends one white light above and beside the camera.

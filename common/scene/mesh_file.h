@@ -16,8 +16,15 @@ namespace rtc {
 /// spheres are cube-spheres with 4x4 tan-warped quads per cube face (192 triangles),
 /// cones/cylinders have 16 segments around, 1 along, no end caps (32 triangles).
 struct Tessellation {
-  int sphere_quads = 4;    ///< quads along each edge of a cube face, >= 1
-  int cone_segments = 16;  ///< segments around a cone, >= 3
+  static constexpr int kMinSphereQuads = 1;
+  static constexpr int kMaxSphereQuads = 1024;
+  static constexpr int kMinConeSegments = 3;
+  static constexpr int kMaxConeSegments = 65536;
+
+  int sphere_quads = 4;    ///< quads along each edge of a cube face, in [1, 1024]
+  int cone_segments = 16;  ///< segments around a cone, in [3, 65536]
+
+  bool operator==(const Tessellation&) const = default;
 };
 
 struct MeshLoadOptions {

@@ -24,9 +24,12 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "common/base/error.h"
 #include "common/base/log.h"
 #include "common/scene/file_bytes.h"
+#include "common/scene/material_values.h"
 #include "common/scene/mesh_builder.h"
 #include "common/scene/mesh_file.h"
 #include "common/scene/tessellate.h"
@@ -43,13 +46,17 @@ class NffReader {
         cursor_(text_, path.string()),
         builder_(path.stem().string(), path.string()),
         tessellation_(tessellation) {
-    if (tessellation.sphere_quads < 1 || tessellation.sphere_quads > 1024) {
-      throw Error("tessellation: sphere_quads must be in [1, 1024], got " +
-                  std::to_string(tessellation.sphere_quads));
+    if (tessellation.sphere_quads < Tessellation::kMinSphereQuads ||
+        tessellation.sphere_quads > Tessellation::kMaxSphereQuads) {
+      throw Error(fmt::format("tessellation: sphere_quads must be in [{}, {}], got {}",
+                              Tessellation::kMinSphereQuads, Tessellation::kMaxSphereQuads,
+                              tessellation.sphere_quads));
     }
-    if (tessellation.cone_segments < 3 || tessellation.cone_segments > 65536) {
-      throw Error("tessellation: cone_segments must be in [3, 65536], got " +
-                  std::to_string(tessellation.cone_segments));
+    if (tessellation.cone_segments < Tessellation::kMinConeSegments ||
+        tessellation.cone_segments > Tessellation::kMaxConeSegments) {
+      throw Error(fmt::format("tessellation: cone_segments must be in [{}, {}], got {}",
+                              Tessellation::kMinConeSegments, Tessellation::kMaxConeSegments,
+                              tessellation.cone_segments));
     }
     const auto magic = [&](std::string_view m) { return text_.compare(0, m.size(), m) == 0; };
     if (magic("\x1f\x8b") || magic("\xfd"
@@ -102,11 +109,25 @@ class NffReader {
     return p;
   }
 
+  /// Fails unless a ball of `radius` around `center` lies within kMaxWorldCoordinate (a
+  /// finite centre and radius may still give vertices beyond the float range).
+  void check_reach(const glm::vec3& center, float radius, std::string_view what) const {
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(static_cast<double>(center[a])) + static_cast<double>(radius) >
+          kMaxWorldCoordinate) {
+        cursor_.fail(fmt::format("{} ({}, {}, {}) with radius {} reaches beyond the float range "
+                                 "(|coordinate| > {})",
+                                 what, center.x, center.y, center.z, radius, kMaxWorldCoordinate));
+      }
+    }
+  }
+
   void read_sphere() {
     const glm::vec3 center = read_point("sphere centre");
     const float radius = cursor_.next_float("sphere radius");
     if (!(radius > 0.0f))
       cursor_.fail("sphere radius must be positive, got " + std::to_string(radius));
+    check_reach(center, radius, "sphere centre");
     if (sphere_.points.empty()) sphere_ = make_cube_sphere(tessellation_.sphere_quads);
     append_sphere(builder_, sphere_, glm::dvec3(center), radius);
   }
@@ -118,6 +139,8 @@ class NffReader {
     const glm::vec3 apex = read_point("cone apex");
     const float apex_radius = cursor_.next_float("cone apex radius");
     if (base_radius < 0.0f || apex_radius < 0.0f) cursor_.fail("cone radius must not be negative");
+    check_reach(base, base_radius, "cone base");
+    check_reach(apex, apex_radius, "cone apex");
     append_cone(builder_, glm::dvec3(base), base_radius, glm::dvec3(apex), apex_radius,
                 tessellation_.cone_segments);
   }
@@ -158,10 +181,12 @@ class NffReader {
     if (inserted) {
       Material m;
       m.name = "nff" + std::to_string(fill_ids_.size() - 1);
-      m.diffuse = v[3] * glm::vec3(v[0], v[1], v[2]);
-      m.specular = glm::vec3(v[4]);
-      m.shininess = v[5];
-      m.reflective = v[4] > 0.0f;
+      // Kd * rgb may overflow to infinity; negative values would give NaN or negative pixels.
+      m.diffuse = checked_color(v[3] * glm::vec3(v[0], v[1], v[2]), "fill Kd * colour",
+                                cursor_.file(), cursor_.line());
+      m.specular = checked_color(glm::vec3(v[4]), "fill Ks", cursor_.file(), cursor_.line());
+      m.shininess = checked_shininess(v[5], "fill Shine", cursor_.file(), cursor_.line());
+      m.reflective = m.specular.x > 0.0f;
       m.opacity = 1.0f - v[6];
       file_.materials.push_back(m);
     }

@@ -25,6 +25,7 @@
 #include "common/base/error.h"
 #include "common/base/log.h"
 #include "common/scene/file_bytes.h"
+#include "common/scene/material_values.h"
 #include "common/scene/mesh_builder.h"
 #include "common/scene/mesh_file.h"
 #include "common/scene/text_cursor.h"
@@ -79,14 +80,16 @@ void read_mtl(const fs::path& path, std::vector<Material>& materials,
       cursor.skip_line();
       continue;
     }
-    if (key == "Kd") {
-      current->diffuse = read_color(cursor, "Kd value");
-    } else if (key == "Ks") {
-      current->specular = read_color(cursor, "Ks value");
-    } else if (key == "Ke") {
-      current->emission = read_color(cursor, "Ke value");
+    // Negative colours and shininess would give NaN or negative pixels: clamped with a warning.
+    if (key == "Kd" || key == "Ks" || key == "Ke") {
+      const glm::vec3 color = read_color(cursor, std::string(key) + " value");
+      glm::vec3& slot = key == "Kd"   ? current->diffuse
+                        : key == "Ks" ? current->specular
+                                      : current->emission;
+      slot = checked_color(color, key, cursor.file(), cursor.line());
     } else if (key == "Ns") {
-      current->shininess = cursor.next_float_on_line("Ns value");
+      const float ns = cursor.next_float_on_line("Ns value");
+      current->shininess = checked_shininess(ns, "Ns", cursor.file(), cursor.line());
     } else if (key == "d") {
       current->opacity = cursor.next_float_on_line("d value");
       has_d = true;
@@ -164,14 +167,14 @@ class ObjReader {
   static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
   // Resolves a 1-based or negative (relative) OBJ index against `count` entries.
-  std::int64_t resolve(std::int64_t index, std::size_t count, std::string_view what,
+  std::int64_t resolve(std::int64_t index, std::size_t count, std::string_view what, std::string_view plural,
                        std::string_view token) {
     const auto n = static_cast<std::int64_t>(count);
     const std::int64_t resolved = index > 0 ? index - 1 : n + index;
     if (index == 0 || resolved < 0 || resolved >= n) {
       cursor_.fail(std::string(what) + " index " + std::to_string(index) + " in " + quoted(token) +
-                   " out of range (" + std::to_string(count) + " " + std::string(what) +
-                   (count == 1 ? "" : "s") + " defined above)");
+                   " out of range (" + std::to_string(count) + " " + std::string(count == 1 ? what : plural) +
+                   " defined above)");
     }
     return resolved;
   }
@@ -181,19 +184,19 @@ class ObjReader {
     std::size_t slash = token.find('/');
     std::int64_t value = 0;
     if (!parse_int(token.substr(0, slash), value)) cursor_.fail("bad face vertex " + quoted(token));
-    corner.v = resolve(value, positions_.size(), "vertex", token);
+    corner.v = resolve(value, positions_.size(), "vertex", "vertices", token);
     if (slash == std::string_view::npos) return corner;
     std::string_view rest = token.substr(slash + 1);
     slash = rest.find('/');
     const std::string_view texcoord = rest.substr(0, slash);
     if (!texcoord.empty()) {
       if (!parse_int(texcoord, value)) cursor_.fail("bad face vertex " + quoted(token));
-      resolve(value, texcoord_count_, "texture coordinate", token);
+      resolve(value, texcoord_count_, "texture coordinate", "texture coordinates", token);
     }
     if (slash == std::string_view::npos) return corner;
     const std::string_view normal = rest.substr(slash + 1);
     if (!parse_int(normal, value)) cursor_.fail("bad face vertex " + quoted(token));
-    corner.vn = resolve(value, normals_.size(), "normal", token);
+    corner.vn = resolve(value, normals_.size(), "normal", "normals", token);
     return corner;
   }
 

@@ -9,9 +9,11 @@
 // The binary fast path maps the file (FileBytes), copies float x/y/z records in one go and
 // feeds `list uchar int` faces straight to the MeshBuilder.
 // The reader validates everything it reads: header syntax, property types, element counts
-// against the bytes left (before allocating), list lengths, index range, finite coordinates
-// and truncation. A header line without a keyword (Wuson.ply's third line) is skipped with
-// a warning, as Assimp does.
+// (binary: against the bytes left, before allocating, and by the file size for elements
+// without properties; ascii: against the data lines), list lengths, index range, finite
+// coordinates within float range (double properties) and truncation. A header line without a
+// keyword (Wuson.ply's third line) is skipped with a warning, as Assimp does.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -20,6 +22,8 @@
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "common/base/error.h"
 #include "common/base/log.h"
@@ -137,7 +141,10 @@ class PlyReader {
     swap_ = format_ == PlyFormat::binary_be;
     std::optional<TextCursor> text;
     if (format_ == PlyFormat::ascii) {
-      text.emplace(bytes_.substr(pos_), file_, false, header_lines + 1);
+      const std::string_view data = bytes_.substr(pos_);
+      text.emplace(data, file_, false, header_lines + 1);
+      data_lines_ = static_cast<std::uint64_t>(std::count(data.begin(), data.end(), '\n')) +
+                    (data.empty() || data.back() == '\n' ? 0 : 1);
     }
     for (const PlyElement& element : elements_) {
       check_fits(element);
@@ -299,12 +306,26 @@ class PlyReader {
     return reinterpret_cast<const unsigned char*>(bytes_.data()) + pos;
   }
 
-  /// Fails before anything is allocated unless `element.count` items fit in what is left
-  /// (binary: each item at least its fixed part, lists empty; ascii: two bytes per value).
+  /// Fails before anything is allocated (or looped over) unless `element.count` items fit in
+  /// what is left. Binary: each item takes at least its fixed part (lists empty); an element
+  /// without properties takes no bytes, so its count is bounded by the file size instead.
+  /// Ascii: one line per item, two bytes per value.
   void check_fits(const PlyElement& element) const {
+    if (format_ == PlyFormat::ascii && element.count > data_lines_) {
+      fail(element.header_line,
+           "element " + element.name + " declares " + std::to_string(element.count) +
+               " items but the data has only " + std::to_string(data_lines_) +
+               " lines (one item per line)");
+    }
     std::size_t min_size = 0;
     for (const PlyProperty& p : element.properties) {
       min_size += format_ == PlyFormat::ascii ? 2 : type_size(p.is_list ? p.count_type : p.type);
+    }
+    if (min_size == 0 && element.count > bytes_.size()) {
+      fail(element.header_line,
+           "element " + element.name + " has no properties but declares " +
+               std::to_string(element.count) + " items, more than the file's " +
+               std::to_string(bytes_.size()) + " bytes");
     }
     if (min_size > 0 && element.count > remaining() / min_size) {
       fail(0, "truncated file: element " + element.name + " declares " +
@@ -347,6 +368,24 @@ class PlyReader {
                              " (expected a finite number)");
     }
     return v;
+  }
+
+  /// (x, y, z) as floats; fails naming the item unless every value is finite and within float
+  /// range (a double property beyond FLT_MAX would overflow the conversion).
+  glm::vec3 to_vec3(double x, double y, double z, const PlyElement& element, std::uint64_t item,
+                    std::uint64_t line, const char* what) const {
+    const double v[3] = {x, y, z};
+    for (const double c : v) {
+      if (!std::isfinite(c)) {
+        fail(line, item_name(element, item) + ": non-finite " + what +
+                       fmt::format(" ({}, {}, {})", x, y, z));
+      }
+      if (std::abs(c) > static_cast<double>(std::numeric_limits<float>::max())) {
+        fail(line, item_name(element, item) + ": " + what + fmt::format(" ({}, {}, {})", x, y, z) +
+                       " is out of float range");
+      }
+    }
+    return {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
   }
 
   void check_finite(const glm::vec3& v, const PlyElement& element, std::uint64_t item,
@@ -392,21 +431,16 @@ class PlyReader {
       for (std::uint64_t item = 0; item < element.count; ++item) {
         const unsigned char* record = data_at(pos_);
         pos_ += record_size;
-        glm::vec3 p;
-        for (int a = 0; a < 3; ++a) {
-          p[a] = static_cast<float>(load_scalar(record + offset[a], type[a], swap_));
+        double v[6] = {};
+        for (int w = 0; w < (has_normals_ ? 6 : 3); ++w) {
+          v[w] = load_scalar(record + offset[w], type[w], swap_);
         }
-        check_finite(p, element, item, 0, "coordinate");
+        const glm::vec3 p = to_vec3(v[0], v[1], v[2], element, item, 0, "coordinate");
         if (!has_normals_) {
           builder_.add_vertex(p);
           continue;
         }
-        glm::vec3 n;
-        for (int a = 0; a < 3; ++a) {
-          n[a] = static_cast<float>(load_scalar(record + offset[3 + a], type[3 + a], swap_));
-        }
-        check_finite(n, element, item, 0, "normal");
-        builder_.add_vertex(p, n);
+        builder_.add_vertex(p, to_vec3(v[3], v[4], v[5], element, item, 0, "normal"));
       }
       return;
     }
@@ -421,18 +455,14 @@ class PlyReader {
         }
       }
       const std::uint64_t line = text != nullptr ? text->line() : 0;
-      const glm::vec3 p(static_cast<float>(values[xyz_[0]]), static_cast<float>(values[xyz_[1]]),
-                        static_cast<float>(values[xyz_[2]]));
-      check_finite(p, element, item, line, "coordinate");
+      const glm::vec3 p = to_vec3(values[xyz_[0]], values[xyz_[1]], values[xyz_[2]], element, item,
+                                  line, "coordinate");
       if (!has_normals_) {
         builder_.add_vertex(p);
         continue;
       }
-      const glm::vec3 n(static_cast<float>(values[normal_[0]]),
-                        static_cast<float>(values[normal_[1]]),
-                        static_cast<float>(values[normal_[2]]));
-      check_finite(n, element, item, line, "normal");
-      builder_.add_vertex(p, n);
+      builder_.add_vertex(p, to_vec3(values[normal_[0]], values[normal_[1]], values[normal_[2]],
+                                     element, item, line, "normal"));
     }
   }
 
@@ -591,6 +621,7 @@ class PlyReader {
   int normal_[3] = {-1, -1, -1};
   bool has_normals_ = false;
   bool vertices_done_ = false;
+  std::uint64_t data_lines_ = 0;  // ascii: lines after end_header
   std::size_t index_property_ = kNoProperty;
   std::vector<std::uint32_t> face_sizes_;
   std::vector<std::uint32_t> face_indices_;

@@ -1,8 +1,14 @@
 // Scene queries and animation evaluation (double-precision interpolation, rounded once).
+// Rotations interpolate with det_math, not glm::slerp: glm calls libm acos and sin, which glibc
+// dispatches per CPU, and every worker evaluates poses itself.
 #include "common/scene/scene.h"
+
+#include <cmath>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
+
+#include "common/math/det_math.h"
 
 namespace rtc {
 namespace {
@@ -45,6 +51,28 @@ glm::dvec3 mix3(const glm::vec3& a, const glm::vec3& b, double t) {
 }
 
 }  // namespace
+
+glm::dquat slerp_shortest(const glm::dquat& a, const glm::dquat& b, double t) {
+  // q and -q are the same rotation: take the one within 90 degrees (in 4D) of a.
+  const glm::dquat c = glm::dot(a, b) < 0.0 ? -b : b;
+  // The 4D angle between a and c from the chord lengths |a - c| = 2 sin(theta / 2) and
+  // |a + c| = 2 cos(theta / 2): well conditioned for every angle, unlike acos(dot(a, c)).
+  const double theta = 2.0 * det_atan2(glm::length(a - c), glm::length(a + c));
+  if (theta < 1e-6) {
+    // Nearly equal: normalised lerp differs from slerp by O(theta^3), below 1e-18.
+    return glm::normalize(a * (1.0 - t) + c * t);
+  }
+  const double sin_theta = det_sin(theta);
+  return a * (det_sin((1.0 - t) * theta) / sin_theta) + c * (det_sin(t * theta) / sin_theta);
+}
+
+glm::dquat rotation_deg_axis(double degrees, const glm::dvec3& unit_axis) {
+  // Exact reduction first (fmod is exact): a turn of 720 degrees is the identity quaternion,
+  // so huge angles keep their meaning instead of losing it in radians.
+  const double half = std::fmod(degrees, 720.0) * (3.14159265358979323846 / 360.0);
+  const double s = det_sin(half);
+  return glm::dquat(det_cos(half), unit_axis.x * s, unit_axis.y * s, unit_axis.z * s);
+}
 
 glm::mat4 Transform::matrix() const {
   return glm::mat4(compose(glm::dvec3(translate), to_double(rotate), glm::dvec3(scale)));
@@ -106,8 +134,8 @@ FramePose pose_at(const Scene& scene, int frame) {
       pose.world_from_object[track.mesh] = a.matrix();  // on or outside a key: that key, exactly
       continue;
     }
-    const glm::dquat rotation =
-        glm::slerp(glm::normalize(to_double(a.rotate)), glm::normalize(to_double(b.rotate)), t);
+    const glm::dquat rotation = slerp_shortest(glm::normalize(to_double(a.rotate)),
+                                               glm::normalize(to_double(b.rotate)), t);
     pose.world_from_object[track.mesh] =
         glm::mat4(compose(mix3(a.translate, b.translate, t), rotation, mix3(a.scale, b.scale, t)));
   }

@@ -16,6 +16,12 @@
 
 namespace rtc {
 
+/// Largest |coordinate| the loaders accept for world-space geometry after transforms (scene
+/// JSON scale and translate, NFF sphere and cone extents): a little below FLT_MAX (3.4e38), so
+/// the renderer's float transforms cannot round up to infinity. Beyond it loading fails with
+/// an rtc::Error naming the field or line.
+inline constexpr double kMaxWorldCoordinate = 3.0e38;
+
 /// Phong material with a mirror term (Whitted). Colours are linear RGB.
 struct Material {
   std::string name = "default";
@@ -143,7 +149,19 @@ struct FramePose {
   std::vector<PointLight> lights;
 };
 
-/// Evaluates the animation at `frame` (deterministic; double-precision interpolation).
+/// Evaluates the animation at `frame` (deterministic; double-precision interpolation, rotations
+/// by slerp_shortest: the same bits on every CPU).
 [[nodiscard]] FramePose pose_at(const Scene& scene, int frame);
+
+/// Spherical linear interpolation between unit quaternions a (t = 0) and b (t = 1) along the
+/// shorter arc (b is negated when dot(a, b) < 0), normalised lerp when they are within 1e-6
+/// radians. Agrees with glm::slerp to 1e-9 (glm's acos(dot) loses digits at small angles; this
+/// takes the angle from atan2 of the chord lengths), and is built on det_math, so it gives the
+/// same bits on every x86-64 CPU.
+[[nodiscard]] glm::dquat slerp_shortest(const glm::dquat& a, const glm::dquat& b, double t);
+
+/// The unit quaternion rotating by `degrees` about `unit_axis` (glm::angleAxis in degrees, on
+/// det_math: the same bits on every CPU). The angle is reduced exactly modulo 720 degrees first.
+[[nodiscard]] glm::dquat rotation_deg_axis(double degrees, const glm::dvec3& unit_axis);
 
 }  // namespace rtc

@@ -2,6 +2,7 @@
 // view.json. Every field is checked for type, length and finiteness, and unknown fields are
 // rejected with their full path, e.g. `scene.json: unknown field "animation.meshes[0].keyz"`.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -10,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "common/base/error.h"
@@ -31,6 +33,34 @@ std::string child(const std::string& path, std::string_view key) {
 
 std::string element(const std::string& path, std::size_t i) {
   return path + "[" + std::to_string(i) + "]";
+}
+
+/// The largest |component|; NaN when any component is NaN.
+template <typename Vec>
+double max_abs(const Vec& v) {
+  double m = 0.0;
+  for (int a = 0; a < Vec::length(); ++a) {
+    const double c = std::abs(static_cast<double>(v[a]));
+    if (std::isnan(c)) return c;
+    m = std::max(m, c);
+  }
+  return m;
+}
+
+/// Per axis, the largest |object-space coordinate| of the mesh's vertices.
+glm::dvec3 object_reach(const Mesh& mesh) {
+  glm::dvec3 reach(0.0);
+  for (const glm::vec3& p : mesh.positions) reach = glm::max(reach, glm::abs(glm::dvec3(p)));
+  return reach;
+}
+
+/// An upper bound on |world coordinate| for a mesh of `reach` under `transform`, whatever its
+/// rotation: |R S p|_i <= sum_j |s_j| |p_j|. The bound is convex in translate and scale, which
+/// pose_at interpolates linearly, so keys within the limit keep every frame between them
+/// within it too.
+double world_reach(const Transform& transform, const glm::dvec3& reach) {
+  const glm::dvec3 s = glm::abs(glm::dvec3(transform.scale));
+  return max_abs(glm::dvec3(transform.translate)) + s.x * reach.x + s.y * reach.y + s.z * reach.z;
 }
 
 std::string type_name(const Json& j) {
@@ -192,7 +222,7 @@ Transform read_transform_fields(const Reader& r, const Json& j, const std::strin
     glm::dvec3 axis;
     for (int a = 0; a < 3; ++a) axis[a] = r.number((*axis_angle)[a + 1], element(p, a + 1));
     if (!(glm::length(axis) > 0.0)) r.fail(p, "rotation axis must not be zero");
-    const glm::dquat q = glm::angleAxis(glm::radians(degrees), glm::normalize(axis));
+    const glm::dquat q = rotation_deg_axis(degrees, glm::normalize(axis));
     base.rotate = glm::quat(static_cast<float>(q.w), static_cast<float>(q.x),
                             static_cast<float>(q.y), static_cast<float>(q.z));
   }
@@ -215,6 +245,10 @@ Transform read_transform_fields(const Reader& r, const Json& j, const std::strin
     if (base.scale.x == 0.0f || base.scale.y == 0.0f || base.scale.z == 0.0f) {
       r.fail(p, "scale must not be zero");
     }
+    // The matrix entries are rotation (up to 1 + rounding) times scale, converted to float.
+    if (max_abs(base.scale) > kMaxWorldCoordinate) {
+      r.fail(p, fmt::format("scale must be within {:.3g}", kMaxWorldCoordinate));
+    }
   }
   return base;
 }
@@ -225,9 +259,20 @@ Material read_material(const Reader& r, const Json& j, const std::string& path) 
   Material m;
   m.name = r.string(r.required(j, path, "name"), child(path, "name"));
   if (m.name.empty()) r.fail(child(path, "name"), "must not be empty");
-  if (const Json* v = r.optional(j, "diffuse")) m.diffuse = r.vec3(*v, child(path, "diffuse"));
-  if (const Json* v = r.optional(j, "specular")) m.specular = r.vec3(*v, child(path, "specular"));
-  if (const Json* v = r.optional(j, "emission")) m.emission = r.vec3(*v, child(path, "emission"));
+  // Negative colours would give negative or NaN pixels.
+  const auto color = [&](std::string_view key, glm::vec3& out) {
+    const Json* v = r.optional(j, key);
+    if (v == nullptr) return;
+    out = r.vec3(*v, child(path, key));
+    if (out.x < 0.0f || out.y < 0.0f || out.z < 0.0f) {
+      r.fail(child(path, key), fmt::format("colour components must not be negative, got "
+                                           "[{}, {}, {}]",
+                                           out.x, out.y, out.z));
+    }
+  };
+  color("diffuse", m.diffuse);
+  color("specular", m.specular);
+  color("emission", m.emission);
   if (const Json* v = r.optional(j, "shininess")) {
     m.shininess = r.real(*v, child(path, "shininess"));
     if (m.shininess < 0.0f) r.fail(child(path, "shininess"), "must not be negative");
@@ -253,6 +298,18 @@ void sort_keys(const Reader& r, std::vector<Key>& keys, const std::string& path)
 }
 
 constexpr std::int64_t kMaxFrame = 1000000000;
+
+/// A frame number in [0, kMaxFrame]: output file names number frames from 0, and a pattern
+/// such as frame_%04d.png has no way to write a negative one.
+int frame_number(const Reader& r, const Json& j, const std::string& path) {
+  const std::int64_t frame =
+      r.integer(j, path, std::numeric_limits<std::int64_t>::min(), kMaxFrame);
+  if (frame < 0) {
+    r.fail(path, "frame " + std::to_string(frame) +
+                     " is negative (output file names number frames from 0)");
+  }
+  return static_cast<int>(frame);
+}
 
 class SceneJsonLoader {
  public:
@@ -346,8 +403,9 @@ class SceneJsonLoader {
     std::optional<std::string> name;
     Transform transform;
     std::optional<std::string> material;
+    std::optional<Tessellation> tessellation;  // .nff only
     fs::path resolved;  // the file, relative to the JSON's folder
-    std::string key;    // canonical path: one load per file
+    std::string key;    // canonical path (and tessellation): one load per file
   };
 
   Json parse() const {
@@ -378,7 +436,7 @@ class SceneJsonLoader {
   }
 
   MeshEntry read_mesh_entry(const Json& j, const std::string& path) const {
-    r_.expect_object(j, path, {"file", "name", "transform", "material"});
+    r_.expect_object(j, path, {"file", "name", "transform", "material", "tessellation"});
     MeshEntry entry;
     entry.path = path;
     entry.file = r_.string(r_.required(j, path, "file"), child(path, "file"));
@@ -390,11 +448,31 @@ class SceneJsonLoader {
     }
     if (const Json* v = r_.optional(j, "material"))
       entry.material = r_.string(*v, child(path, "material"));
+    if (const Json* v = r_.optional(j, "tessellation")) {
+      const std::string p = child(path, "tessellation");
+      r_.expect_object(*v, p, {"sphere", "cone"});
+      Tessellation t;
+      if (const Json* n = r_.optional(*v, "sphere")) {
+        t.sphere_quads = static_cast<int>(r_.integer(*n, child(p, "sphere"),
+                                                     Tessellation::kMinSphereQuads,
+                                                     Tessellation::kMaxSphereQuads));
+      }
+      if (const Json* n = r_.optional(*v, "cone")) {
+        t.cone_segments = static_cast<int>(r_.integer(*n, child(p, "cone"),
+                                                      Tessellation::kMinConeSegments,
+                                                      Tessellation::kMaxConeSegments));
+      }
+      entry.tessellation = t;
+    }
     return entry;
   }
 
   static std::string file_field(const MeshEntry& entry) {
     return entry.path == "mesh" ? "mesh" : child(entry.path, "file");
+  }
+
+  static std::string transform_field(const MeshEntry& entry) {
+    return entry.path == "mesh" ? "mesh" : child(entry.path, "transform");
   }
 
   /// Checks that the mesh file exists (before anything is loaded) and names it canonically.
@@ -409,13 +487,29 @@ class SceneJsonLoader {
     }
     entry.key = fs::weakly_canonical(entry.resolved, ec).string();
     if (ec) entry.key = entry.resolved.string();
+    if (entry.tessellation) {
+      std::string ext = entry.resolved.extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (ext != ".nff") {
+        r_.fail(child(entry.path, "tessellation"),
+                "only .nff meshes are tessellated (\"" + entry.file + "\" is not one)");
+      }
+      // Another tessellation of the same file is another mesh.
+      if (*entry.tessellation != Tessellation{}) {
+        entry.key += fmt::format("\ntessellation {} {}", entry.tessellation->sphere_quads,
+                                 entry.tessellation->cone_segments);
+      }
+    }
   }
 
   void add_mesh(const MeshEntry& entry) {
     auto it = cache_.find(entry.key);
     if (it == cache_.end()) {
       try {
-        it = cache_.emplace(entry.key, load_mesh_file(entry.resolved)).first;
+        MeshLoadOptions options;
+        if (entry.tessellation) options.tessellation = *entry.tessellation;
+        it = cache_.emplace(entry.key, load_mesh_file(entry.resolved, options)).first;
       } catch (const Error& e) {
         throw Error(std::string(e.what()) + " (loading field \"" + file_field(entry) + "\" of " +
                     r_.file() + ")");
@@ -437,10 +531,23 @@ class SceneJsonLoader {
       index = append_mesh(scene_, std::move(mesh), file.materials);
     }
     transforms_.push_back(entry.transform);
+    reach_.push_back(object_reach(scene_.meshes[index]));
+    check_reach(entry.transform, index, transform_field(entry));
     // An NFF brings its own view; the first one is used where the JSON gives none, moved by
     // the mesh's transform.
     const glm::mat4& world = scene_.meshes[index].world_from_object;
+    // Checked in double first: the float products below would overflow to infinity.
+    const auto check_moved = [&](const glm::vec3& p, double w, const std::string& what) {
+      if (!(max_abs(glm::dmat4(world) * glm::dvec4(glm::dvec3(p), w)) <= kMaxWorldCoordinate)) {
+        r_.fail(transform_field(entry),
+                fmt::format("moves the {} of \"{}\" beyond the float range (|coordinate| > {})",
+                            what, entry.file, kMaxWorldCoordinate));
+      }
+    };
     if (file.camera && !nff_camera_) {
+      check_moved(file.camera->eye, 1.0, "NFF camera");
+      check_moved(file.camera->look_at, 1.0, "NFF camera");
+      check_moved(file.camera->up, 0.0, "NFF camera");
       Camera camera = *file.camera;
       camera.eye = glm::vec3(world * glm::vec4(camera.eye, 1.0f));
       camera.look_at = glm::vec3(world * glm::vec4(camera.look_at, 1.0f));
@@ -449,12 +556,25 @@ class SceneJsonLoader {
     }
     if (!file.lights.empty() && nff_lights_.empty()) {
       for (PointLight light : file.lights) {
+        check_moved(light.position, 1.0, "NFF lights");
         light.position = glm::vec3(world * glm::vec4(light.position, 1.0f));
         nff_lights_.push_back(light);
       }
     }
     if (file.resolution && !nff_resolution_) nff_resolution_ = file.resolution;
     if (file.background && !nff_background_) nff_background_ = file.background;
+  }
+
+  /// Fails at `field` unless `transform` keeps scene mesh `index` within kMaxWorldCoordinate.
+  void check_reach(const Transform& transform, std::uint32_t index,
+                   const std::string& field) const {
+    const double reach = world_reach(transform, reach_[index]);
+    if (!(reach <= kMaxWorldCoordinate)) {
+      r_.fail(field, fmt::format("translate and scale let mesh \"{}\" reach world coordinates "
+                                 "of {:.3g} (for some rotation), beyond the float range (limit "
+                                 "{:.3g})",
+                                 scene_.meshes[index].name, reach, kMaxWorldCoordinate));
+    }
   }
 
   std::uint32_t material_by_name(const std::string& name, const std::string& path) const {
@@ -509,10 +629,8 @@ class SceneJsonLoader {
     r_.expect_object(j, "animation", {"frames", "camera", "meshes", "lights"});
     Animation& anim = scene_.animation;
     const Json& frames = r_.array(r_.required(j, "animation", "frames"), "animation.frames", 2);
-    anim.frame_begin =
-        static_cast<int>(r_.integer(frames[0], "animation.frames[0]", -kMaxFrame, kMaxFrame));
-    anim.frame_end =
-        static_cast<int>(r_.integer(frames[1], "animation.frames[1]", -kMaxFrame, kMaxFrame));
+    anim.frame_begin = frame_number(r_, frames[0], "animation.frames[0]");
+    anim.frame_end = frame_number(r_, frames[1], "animation.frames[1]");
     if (anim.frame_end < anim.frame_begin)
       r_.fail("animation.frames", "end frame before begin frame");
 
@@ -531,69 +649,76 @@ class SceneJsonLoader {
     }
 
     if (const Json* list = r_.optional(j, "meshes")) {
-      r_.array(*list, "animation.meshes");
-      for (std::size_t i = 0; i < list->size(); ++i) {
-        const std::string path = element("animation.meshes", i);
-        const Json& track_json = (*list)[i];
-        r_.expect_object(track_json, path, {"mesh", "keys"});
-        MeshTrack track;
-        track.mesh = mesh_ref(r_.required(track_json, path, "mesh"), child(path, "mesh"));
-        for (const MeshTrack& other : anim.meshes) {
-          if (other.mesh == track.mesh) r_.fail(child(path, "mesh"), "mesh already has a track");
-        }
-        const std::string keys_path = child(path, "keys");
-        const Json& keys = r_.array(r_.required(track_json, path, "keys"), keys_path);
-        if (keys.empty()) r_.fail(keys_path, "a track needs at least one key");
-        for (std::size_t k = 0; k < keys.size(); ++k) {
-          const std::string key_path = element(keys_path, k);
-          r_.expect_object(keys[k], key_path,
-                           {"frame", "translate", "rotate_deg_axis", "quaternion", "scale"});
-          TransformKey tk;
-          tk.frame = read_frame(keys[k], key_path);
-          tk.transform = read_transform_fields(r_, keys[k], key_path, transforms_[track.mesh]);
-          track.keys.push_back(tk);
-        }
-        sort_keys(r_, track.keys, keys_path);
-        anim.meshes.push_back(std::move(track));
-      }
+      anim.meshes = read_tracks<MeshTrack>(
+          *list, "animation.meshes", "mesh", &MeshTrack::mesh,
+          {"frame", "translate", "rotate_deg_axis", "quaternion", "scale"},
+          [&](const Json& target, const std::string& path) { return mesh_ref(target, path); },
+          [&](const Json& key, const std::string& key_path, std::uint32_t mesh) {
+            TransformKey tk;
+            tk.transform = read_transform_fields(r_, key, key_path, transforms_[mesh]);
+            check_reach(tk.transform, mesh, key_path);
+            return tk;
+          });
     }
 
     if (const Json* list = r_.optional(j, "lights")) {
-      r_.array(*list, "animation.lights");
-      for (std::size_t i = 0; i < list->size(); ++i) {
-        const std::string path = element("animation.lights", i);
-        const Json& track_json = (*list)[i];
-        r_.expect_object(track_json, path, {"light", "keys"});
-        LightTrack track;
-        const std::int64_t max_light = static_cast<std::int64_t>(scene_.lights.size()) - 1;
-        if (max_light < 0) r_.fail(child(path, "light"), "the scene has no lights");
-        track.light = static_cast<std::uint32_t>(
-            r_.integer(r_.required(track_json, path, "light"), child(path, "light"), 0, max_light));
-        for (const LightTrack& other : anim.lights) {
-          if (other.light == track.light)
-            r_.fail(child(path, "light"), "light already has a track");
-        }
-        const std::string keys_path = child(path, "keys");
-        const Json& keys = r_.array(r_.required(track_json, path, "keys"), keys_path);
-        if (keys.empty()) r_.fail(keys_path, "a track needs at least one key");
-        for (std::size_t k = 0; k < keys.size(); ++k) {
-          const std::string key_path = element(keys_path, k);
-          r_.expect_object(keys[k], key_path, {"frame", "position"});
-          LightKey lk;
-          lk.frame = read_frame(keys[k], key_path);
-          lk.position =
-              r_.vec3(r_.required(keys[k], key_path, "position"), child(key_path, "position"));
-          track.keys.push_back(lk);
-        }
-        sort_keys(r_, track.keys, keys_path);
-        anim.lights.push_back(std::move(track));
-      }
+      anim.lights = read_tracks<LightTrack>(
+          *list, "animation.lights", "light", &LightTrack::light, {"frame", "position"},
+          [&](const Json& target, const std::string& path) {
+            const auto max_light = static_cast<std::int64_t>(scene_.lights.size()) - 1;
+            if (max_light < 0) r_.fail(path, "the scene has no lights");
+            return static_cast<std::uint32_t>(r_.integer(target, path, 0, max_light));
+          },
+          [&](const Json& key, const std::string& key_path, std::uint32_t) {
+            LightKey lk;
+            lk.position =
+                r_.vec3(r_.required(key, key_path, "position"), child(key_path, "position"));
+            return lk;
+          });
     }
   }
 
+  /// Reads a list of tracks (animation.meshes, animation.lights): objects with a target field
+  /// (`target_field`, stored in `Track::*target` by `read_target(json, path)`) and "keys", at
+  /// most one track per target. Each key is an object with `key_fields`; its frame is read
+  /// here, the rest by `read_key(json, path, target)`. Keys come back sorted, no frame twice.
+  template <typename Track, typename ReadTarget, typename ReadKey>
+  std::vector<Track> read_tracks(const Json& list, const std::string& list_path,
+                                 std::string_view target_field, std::uint32_t Track::*target,
+                                 std::initializer_list<std::string_view> key_fields,
+                                 ReadTarget read_target, ReadKey read_key) const {
+    r_.array(list, list_path);
+    std::vector<Track> tracks;
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string path = element(list_path, i);
+      const std::string target_path = child(path, target_field);
+      r_.expect_object(list[i], path, {target_field, "keys"});
+      Track track;
+      track.*target = read_target(r_.required(list[i], path, target_field), target_path);
+      for (const Track& other : tracks) {
+        if (other.*target == track.*target) {
+          r_.fail(target_path, std::string(target_field) + " already has a track");
+        }
+      }
+      const std::string keys_path = child(path, "keys");
+      const Json& keys = r_.array(r_.required(list[i], path, "keys"), keys_path);
+      if (keys.empty()) r_.fail(keys_path, "a track needs at least one key");
+      for (std::size_t k = 0; k < keys.size(); ++k) {
+        const std::string key_path = element(keys_path, k);
+        r_.expect_object(keys[k], key_path, key_fields);
+        const int frame = read_frame(keys[k], key_path);
+        auto key = read_key(keys[k], key_path, track.*target);
+        key.frame = frame;
+        track.keys.push_back(std::move(key));
+      }
+      sort_keys(r_, track.keys, keys_path);
+      tracks.push_back(std::move(track));
+    }
+    return tracks;
+  }
+
   int read_frame(const Json& key, const std::string& path) const {
-    return static_cast<int>(
-        r_.integer(r_.required(key, path, "frame"), child(path, "frame"), -kMaxFrame, kMaxFrame));
+    return frame_number(r_, r_.required(key, path, "frame"), child(path, "frame"));
   }
 
   std::uint32_t mesh_ref(const Json& j, const std::string& path) const {
@@ -620,6 +745,7 @@ class SceneJsonLoader {
   std::map<std::string, int> uses_left_;
   std::map<std::string, std::uint32_t> inline_material_;
   std::vector<Transform> transforms_;  // static transform of each scene mesh
+  std::vector<glm::dvec3> reach_;      // per scene mesh: largest |object coordinate| per axis
   std::uint64_t input_triangles_ = 0;
   std::optional<Camera> nff_camera_;
   std::vector<PointLight> nff_lights_;

@@ -1,16 +1,21 @@
 // Cube-spheres, open cones and polygon triangulation for the NFF loader and the default scene.
+// Angles go through det_math: the same triangles on every CPU.
 #include "common/scene/tessellate.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "common/base/error.h"
+#include "common/math/det_math.h"
 
 namespace rtc {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kFloatMax = std::numeric_limits<float>::max();
 
 struct Projected {
   std::vector<glm::dvec2> points;
@@ -144,7 +149,7 @@ SphereTemplate make_cube_sphere(int quads) {
     if (inserted) {
       it->second = static_cast<std::uint32_t>(out.points.size());
       glm::dvec3 q;
-      for (int a = 0; a < 3; ++a) q[a] = std::tan(kPi / 4.0 * lattice[a] / n);
+      for (int a = 0; a < 3; ++a) q[a] = det_tan(kPi / 4.0 * lattice[a] / n);
       out.points.push_back(glm::normalize(q));
     }
     return it->second;
@@ -206,8 +211,12 @@ void append_cone(MeshBuilder& builder, const glm::dvec3& base, double base_radiu
     const double radius = ring == 0 ? base_radius : apex_radius;
     for (std::uint32_t k = 0; k < m; ++k) {
       const double angle = 2.0 * kPi * k / m;
-      const glm::dvec3 radial = std::cos(angle) * u + std::sin(angle) * v;
-      const glm::dvec3 normal = radial * height + w * (base_radius - apex_radius);
+      const glm::dvec3 radial = det_cos(angle) * u + det_sin(angle) * v;
+      glm::dvec3 normal = radial * height + w * (base_radius - apex_radius);
+      // A cone spanning most of the float range has a normal beyond it; only its direction
+      // matters (the builder normalises), and converting it as it is would be undefined.
+      const double largest = std::max({std::abs(normal.x), std::abs(normal.y), std::abs(normal.z)});
+      if (largest > kFloatMax) normal /= largest;
       builder.add_vertex(glm::vec3(center + radius * radial), glm::vec3(normal));
     }
   }

@@ -31,13 +31,15 @@ struct SphereTemplate {
 };
 [[nodiscard]] SphereTemplate make_cube_sphere(int quads);
 
-/// Appends a sphere (vertices with normals) with the builder's current material.
+/// Appends a sphere (vertices with normals) with the builder's current material. The caller
+/// keeps |center| + radius within the float range (the NFF loader checks it per line).
 void append_sphere(MeshBuilder& builder, const SphereTemplate& unit, const glm::dvec3& center,
                    double radius);
 
 /// Appends an open cone or cylinder from a base circle to an apex circle (either radius may
 /// be 0): `segments` around, 1 along, no caps, 2 * segments triangles, normals perpendicular
-/// to the slanted side, winding counter-clockwise seen from outside.
+/// to the slanted side, winding counter-clockwise seen from outside. The caller keeps both
+/// circles within the float range.
 void append_cone(MeshBuilder& builder, const glm::dvec3& base, double base_radius,
                  const glm::dvec3& apex, double apex_radius, int segments);
 

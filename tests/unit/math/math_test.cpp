@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <random>
 
 #include "common/base/error.h"
@@ -48,6 +50,84 @@ TEST(DetMath, TanMatchesLibm) {
     const double x = deg * (3.14159265358979323846 / 360.0);
     EXPECT_NEAR(det_tan(x) / std::tan(x), 1.0, 1e-13) << deg;
   }
+}
+
+/// |got - want| <= tolerance |want|, printed as hex floats when it fails.
+::testing::AssertionResult RelativelyNear(double got, double want, double tolerance, double x) {
+  if (std::abs(got - want) <= tolerance * std::abs(want)) return ::testing::AssertionSuccess();
+  char text[160];
+  std::snprintf(text, sizeof text, "x = %a: got %a, libm %a (relative error %.3g)", x, got, want,
+                (got - want) / want);
+  return ::testing::AssertionFailure() << text;
+}
+
+TEST(DetMath, SinAndCosMatchLibm) {
+  const unsigned seed = 3;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> small(-4.0, 4.0), medium(-1e4, 1e4), large(-8e5, 8e5);
+  for (int i = 0; i < 100000; ++i) {
+    for (const double x : {small(rng), medium(rng), large(rng)}) {
+      ASSERT_TRUE(RelativelyNear(det_sin(x), std::sin(x), 1e-14, x)) << "seed " << seed;
+      ASSERT_TRUE(RelativelyNear(det_cos(x), std::cos(x), 1e-14, x)) << "seed " << seed;
+    }
+  }
+  EXPECT_EQ(det_sin(0.0), 0.0);
+  EXPECT_EQ(det_cos(0.0), 1.0);
+  EXPECT_TRUE(std::signbit(det_sin(-0.0)));
+  EXPECT_EQ(det_sin(1e-300), 1e-300);
+  EXPECT_TRUE(std::isnan(det_sin(INFINITY)));
+  EXPECT_TRUE(std::isnan(det_cos(-INFINITY)));
+  EXPECT_TRUE(std::isnan(det_sin(NAN)));
+}
+
+TEST(DetMath, SinAndCosKeepTheirDigitsNearMultiplesOfHalfPi) {
+  // The doubles nearest k pi/2 (and their neighbours): sin or cos there is 1e-13..1e-17, all
+  // of it in the reduction's low bits.
+  for (int k = 1; k <= 6400; ++k) {
+    const double near = static_cast<double>(k) * 1.57079632679489661923;
+    for (const double x : {near, std::nextafter(near, 0.0), std::nextafter(near, 1e9), -near}) {
+      ASSERT_TRUE(RelativelyNear(det_sin(x), std::sin(x), 1e-14, x)) << "k = " << k;
+      ASSERT_TRUE(RelativelyNear(det_cos(x), std::cos(x), 1e-14, x)) << "k = " << k;
+    }
+  }
+}
+
+TEST(DetMath, SinAndCosOfHugeArgumentsStayBounded) {
+  for (const double x : {1e6, -3.5e7, 1e12, 1e100, -1e308}) {
+    const double s = det_sin(x), c = det_cos(x);
+    EXPECT_LE(std::abs(s), 1.0) << x;
+    EXPECT_NEAR(s * s + c * c, 1.0, 1e-14) << x;
+    if (std::abs(x) < 1e13) {
+      EXPECT_NEAR(s, std::sin(x), std::abs(x) * 0x1p-50) << x;
+    }
+  }
+}
+
+TEST(DetMath, Atan2AndAcosMatchLibm) {
+  const unsigned seed = 4;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), exponent(-40.0, 40.0);
+  for (int i = 0; i < 100000; ++i) {
+    const double y = unit(rng) * std::exp2(exponent(rng));
+    const double x = unit(rng) * std::exp2(exponent(rng));
+    ASSERT_TRUE(RelativelyNear(det_atan2(y, x), std::atan2(y, x), 1e-14, y))
+        << "x = " << std::hexfloat << x << ", seed " << seed;
+    const double c = unit(rng);
+    ASSERT_TRUE(RelativelyNear(det_acos(c), std::acos(c), 1e-14, c)) << "seed " << seed;
+    // Near +-1, where acos is steep.
+    const double edge = std::copysign(1.0 - std::exp2(-std::abs(exponent(rng)) - 10.0), c);
+    ASSERT_TRUE(RelativelyNear(det_acos(edge), std::acos(edge), 1e-14, edge)) << "seed " << seed;
+  }
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (const double y : {0.0, -0.0, 1.0, -1.0, kInf, -kInf}) {
+    for (const double x : {0.0, -0.0, 1.0, -1.0, kInf, -kInf}) {
+      EXPECT_TRUE(RelativelyNear(det_atan2(y, x), std::atan2(y, x), 1e-15, y)) << x;
+      EXPECT_EQ(std::signbit(det_atan2(y, x)), std::signbit(std::atan2(y, x))) << y << " " << x;
+    }
+  }
+  EXPECT_EQ(det_acos(1.0), 0.0);
+  EXPECT_TRUE(std::isnan(det_acos(1.0000001)));
+  EXPECT_TRUE(std::isnan(det_atan2(NAN, 1.0)));
 }
 
 TEST(Camera, FollowsCameraMd) {

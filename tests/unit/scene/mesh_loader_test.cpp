@@ -55,6 +55,32 @@ TEST(ObjLoader, ReadsTrianglesNormalsAndMaterials) {
   EXPECT_FALSE(grey.reflective);
 }
 
+TEST(ObjLoader, NegativeShininessAndColoursAreClampedWithOneWarningEach) {
+  TempDir dir;
+  dir.write("neg.mtl",
+            "newmtl dark\nNs -5\nKd -0.5 0.25 0.5\nKs 0.5 -1 0.5\nKe -2\n"
+            "newmtl fine\nNs 10\nKd 0.5\n");
+  const auto obj = dir.write("neg.obj",
+                             "mtllib neg.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl dark\nf 1 2 3\n");
+  const test::CapturedLog log;
+  const MeshFile file = load_obj(obj);
+  const Material& dark = file.materials.at(file.mesh.material_ids[0]);
+  EXPECT_EQ(dark.shininess, 0.0f);
+  EXPECT_EQ(dark.diffuse, glm::vec3(0.0f, 0.25f, 0.5f));
+  EXPECT_EQ(dark.specular, glm::vec3(0.5f, 0.0f, 0.5f));
+  EXPECT_EQ(dark.emission, glm::vec3(0.0f));
+  EXPECT_EQ(log.count("neg.mtl:2: negative Ns -5 clamped to 0"), 1u);
+  EXPECT_EQ(log.count("neg.mtl:3: negative Kd (-0.5, 0.25, 0.5) clamped to 0"), 1u);
+  EXPECT_EQ(log.count("neg.mtl:4: negative Ks"), 1u);
+  EXPECT_EQ(log.count("neg.mtl:5: negative Ke (-2, -2, -2)"), 1u);
+  EXPECT_EQ(log.count("negative"), 4u) << "nothing for the fine material";
+  // Non-finite values never get that far: the number parser rejects them with their line.
+  dir.write("inf.mtl", "newmtl x\nNs 1e999\n");
+  const auto inf = dir.write("inf.obj", "mtllib inf.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_NE(error_of([&] { (void)load_obj(inf); }).find("inf.mtl:2: bad Ns value"),
+            std::string::npos);
+}
+
 TEST(ObjLoader, FanTriangulatesPolygonsFromVertexZero) {
   TempDir dir;
   const auto obj = dir.write("poly.obj",
@@ -274,6 +300,74 @@ TEST(PlyLoader, HugeElementCountIsRejectedBeforeAllocating) {
   EXPECT_NE(message.find("declares 4000000000 items"), std::string::npos) << message;
 }
 
+TEST(PlyLoader, ElementWithoutPropertiesCannotDeclareAbsurdCounts) {
+  TempDir dir;
+  // No properties: each item takes no bytes, so the count is bounded by the file size.
+  const std::string binary = binary_ply(PlyData{});
+  std::string huge = binary;
+  huge.insert(huge.find("element face"), "element junk 9223372036854775807\n");
+  const std::string message = error_of([&] { (void)load_ply(dir.write("junk.ply", huge)); });
+  EXPECT_NE(message.find("junk.ply:8: element junk has no properties but declares "
+                         "9223372036854775807 items, more than the file's"),
+            std::string::npos)
+      << message;
+  std::string few = binary;
+  few.insert(few.find("element face"), "element junk 3\n");
+  EXPECT_EQ(load_ply(dir.write("few.ply", few)).mesh.triangles.size(), 3u);
+}
+
+TEST(PlyLoader, AsciiElementCountIsBoundedByTheDataLines) {
+  TempDir dir;
+  const std::string ascii = ascii_ply(PlyData{});  // 4 vertex and 2 face lines
+  std::string junk = ascii;
+  junk.insert(junk.find("end_header"), "element junk 7\n");
+  const std::string message = error_of([&] { (void)load_ply(dir.write("junk.ply", junk)); });
+  EXPECT_NE(message.find("junk.ply:10: element junk declares 7 items but the data has only 6 "
+                         "lines"),
+            std::string::npos)
+      << message;
+  std::string many = ascii;
+  many.replace(many.find("element vertex 4"), 16, "element vertex 4000000000");
+  EXPECT_NE(error_of([&] { (void)load_ply(dir.write("many.ply", many)); })
+                .find("element vertex declares 4000000000 items but the data has only 6 lines"),
+            std::string::npos);
+  std::string fits = ascii;
+  fits.insert(fits.find("end_header"), "element junk 6\n");
+  EXPECT_EQ(load_ply(dir.write("fits.ply", fits)).mesh.triangles.size(), 3u);
+}
+
+TEST(PlyLoader, DoublesBeyondTheFloatRangeAreRejected) {
+  TempDir dir;
+  const auto write = [&](const std::string& name, double big, bool normal) {
+    std::string out = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+                      "property double x\nproperty double y\nproperty double z\n";
+    if (normal) out += "property double nx\nproperty double ny\nproperty double nz\n";
+    out += "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    const double points[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (int v = 0; v < 3; ++v) {
+      for (int a = 0; a < 3; ++a) {
+        test::append_le(out, v == 1 && a == 2 && !normal ? big : points[v][a]);
+      }
+      if (normal) {
+        for (int a = 0; a < 3; ++a) test::append_le(out, v == 2 && a == 0 ? big : 1.0);
+      }
+    }
+    out += static_cast<char>(3);
+    for (const std::int32_t i : {0, 1, 2}) test::append_le(out, i);
+    return dir.write(name, out);
+  };
+  const std::string coordinate = error_of([&] { (void)load_ply(write("c.ply", 1e300, false)); });
+  EXPECT_NE(coordinate.find("c.ply: vertex 1: coordinate (1, 0, 1e+300) is out of float range"),
+            std::string::npos)
+      << coordinate;
+  const std::string normal = error_of([&] { (void)load_ply(write("n.ply", -4e38, true)); });
+  EXPECT_NE(normal.find("n.ply: vertex 2: normal (-4e+38, 1, 1) is out of float range"),
+            std::string::npos)
+      << normal;
+  // Just inside the float range is fine.
+  EXPECT_EQ(load_ply(write("ok.ply", 3e38, false)).mesh.positions[1].z, 3e38f);
+}
+
 TEST(PlyLoader, IndexOutOfRangeIsRejected) {
   TempDir dir;
   PlyData data;
@@ -378,6 +472,18 @@ TEST(GltfLoader, BakesNodeTransformsAndInstances) {
   EXPECT_EQ(mesh.positions[mesh.triangles[0].y], glm::vec3(11, 0, 0));
   EXPECT_EQ(mesh.positions[mesh.triangles[1].z], glm::vec3(0, 2, 5));
   EXPECT_EQ(file.materials.at(mesh.material_ids[0]).diffuse, glm::vec3(0.2f, 0.4f, 0.6f));
+}
+
+TEST(GltfLoader, PositionsBeyondTheFloatRangeAreRejected) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string matrix = "[2,0,0,0, 0,2,0,0, 0,0,2,0, 0,0,5,1]";
+  // Scale and translation are floats, but together they put vertex 1 at x = 6e38.
+  gltf.replace(gltf.find(matrix), matrix.size(),
+               "[3e38,0,0,0, 0,3e38,0,0, 0,0,3e38,0, 3e38,0,0,1]");
+  const std::string message = error_of([&] { (void)load_gltf(dir.write("far.gltf", gltf)); });
+  EXPECT_NE(message.find("far.gltf: glTF: mesh"), std::string::npos) << message;
+  EXPECT_NE(message.find("outside the float range"), std::string::npos) << message;
 }
 
 TEST(GltfLoader, GarbageIsRejected) {

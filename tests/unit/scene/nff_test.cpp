@@ -223,6 +223,54 @@ TEST(NffLoader, BadInputNamesTheLine) {
             std::string::npos);
 }
 
+TEST(NffLoader, NegativeFillValuesAreClampedAndOverflowIsRejected) {
+  TempDir dir;
+  const test::CapturedLog log;
+  const MeshFile file = load_nff(dir.write("neg.nff",
+                                           "f 1 1 1 1 0.5 -10 0 0\ns 0 0 0 1\n"
+                                           "f 1 -1 1 1 -0.5 20 0 0\ns 3 0 0 1\n"
+                                           "f 1 -1 1 1 -0.5 20 0 0\ns 6 0 0 1\n"));
+  ASSERT_EQ(file.materials.size(), 3u);  // default + two distinct f lines
+  EXPECT_EQ(file.materials[1].shininess, 0.0f);
+  EXPECT_TRUE(file.materials[1].reflective);
+  EXPECT_EQ(file.materials[2].diffuse, glm::vec3(1, 0, 1));
+  EXPECT_EQ(file.materials[2].specular, glm::vec3(0.0f));
+  EXPECT_FALSE(file.materials[2].reflective) << "a clamped Ks is no mirror";
+  EXPECT_EQ(log.count("neg.nff:1: negative fill Shine -10 clamped to 0"), 1u);
+  EXPECT_EQ(log.count("neg.nff:3: negative fill Kd * colour (1, -1, 1) clamped to 0"), 1u);
+  EXPECT_EQ(log.count("neg.nff:3: negative fill Ks (-0.5, -0.5, -0.5) clamped to 0"), 1u);
+  EXPECT_EQ(log.count("negative"), 3u) << "a repeated f line shares the material and the warning";
+  // Kd * colour overflows to infinity although both are finite.
+  const std::string message = error_of([&] {
+    (void)load_nff(dir.write("big.nff", "s 0 0 0 1\nf 1e30 1 1 1e30 0 10 0 0\ns 0 0 0 1\n"));
+  });
+  EXPECT_NE(message.find("big.nff:2: fill Kd * colour (inf, 1e+30, 1e+30) is not finite"),
+            std::string::npos)
+      << message;
+}
+
+TEST(NffLoader, SpheresAndConesBeyondTheFloatRangeAreRejected) {
+  TempDir dir;
+  const std::string sphere =
+      error_of([&] { (void)load_nff(dir.write("s.nff", "s 0 0 0 1\ns 0 -3e38 0 1e38\n")); });
+  EXPECT_NE(sphere.find("s.nff:2: sphere centre (0, -3e+38, 0) with radius 1e+38 reaches beyond "
+                        "the float range"),
+            std::string::npos)
+      << sphere;
+  const std::string cone =
+      error_of([&] { (void)load_nff(dir.write("c.nff", "c\n0 0 0 1\n2.9e38 0 0 2e37\n")); });
+  EXPECT_NE(cone.find("c.nff:3: cone apex (2.9e+38, 0, 0) with radius 2e+37 reaches beyond"),
+            std::string::npos)
+      << cone;
+  // A cone spanning most of the range is fine, normals included (its unscaled normal is not).
+  const Mesh wide = load_nff(dir.write("w.nff", "c -2.9e38 0 0 1e30 2.9e38 0 0 1e30\n")).mesh;
+  ASSERT_EQ(wide.triangles.size(), 32u);
+  for (const glm::vec3& n : wide.normals) {
+    EXPECT_TRUE(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z));
+    EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f);
+  }
+}
+
 // --- tessellation -----------------------------------------------------------------------
 
 TEST(Tessellation, ConvexPolygonIsAFanFromVertexZero) {

@@ -293,6 +293,177 @@ TEST(SceneJson, AnimationReferencesAreChecked) {
             std::string::npos);
 }
 
+TEST(SceneJson, NegativeFramesAreRejected) {
+  JsonCase c;
+  const std::string begin =
+      c.error(R"({"mesh": "tri.obj", "animation": {"frames": [-1, 5]}})");
+  EXPECT_NE(begin.find("scene.json: field \"animation.frames[0]\": frame -1 is negative"),
+            std::string::npos)
+      << begin;
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [-9, -2]}})")
+                .find("\"animation.frames[0]\": frame -9 is negative"),
+            std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "camera": [{"frame": -3}]}})")
+          .find("\"animation.camera[0].frame\": frame -3 is negative"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "meshes": [{"mesh": 0, "keys": [{"frame": 0}, {"frame": -1}]}]}})")
+          .find("\"animation.meshes[0].keys[1].frame\": frame -1 is negative"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "lights": [{"light": 0, "keys": [{"frame": -7, "position": [0, 0, 0]}]}]}})")
+          .find("\"animation.lights[0].keys[0].frame\": frame -7 is negative"),
+      std::string::npos);
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1000000001]}})")
+                .find("\"animation.frames[1]\": must be in"),
+            std::string::npos);
+}
+
+TEST(SceneJson, TransformsBeyondTheFloatRangeAreRejected) {
+  JsonCase c;
+  // tri.obj reaches 1 along x and y: translate 2e38 plus scale 2e38 can reach 6e38 once
+  // rotated (the check holds for every rotation, so for every pose between keys too).
+  const std::string placed = c.error(
+      R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [2e38, 0, 0], "scale": 2e38}}]})");
+  EXPECT_NE(placed.find("scene.json: field \"meshes[0].transform\": translate and scale let mesh "
+                        "\"tri\" reach world coordinates of 6e+38 (for some rotation), beyond "
+                        "the float range"),
+            std::string::npos)
+      << placed;
+  EXPECT_NE(
+      c.error(
+           R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [0, 2e38, 0], "scale": [1, 2e38, 1], "rotate_deg_axis": [45, 0, 0, 1]}}]})")
+          .find("\"meshes[0].transform\": translate and scale"),
+      std::string::npos);
+  const std::string key = c.error(
+      R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "meshes": [{"mesh": 0, "keys": [{"frame": 0}, {"frame": 5, "translate": [3e38, 0, 0], "scale": 1e38}]}]}})");
+  EXPECT_NE(key.find("\"animation.meshes[0].keys[1]\": translate and scale let mesh \"tri\""),
+            std::string::npos)
+      << key;
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"scale": [1, 1, 3.3e38]}}]})")
+                .find("\"meshes[0].transform.scale\": scale must be within 3e+38"),
+            std::string::npos);
+  // Within the range: fine, also rotated.
+  EXPECT_NO_THROW((void)load_scene(c.write(
+      R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [5e37, 0, 0], "scale": 1e38, "rotate_deg_axis": [45, 0, 0, 1]}}], "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 0]}})")));
+  // An NFF view and lights move with the mesh: they must stay in range too.
+  (void)c.dir.write("v.nff", "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 30\nl 9 0 0\ns 0 0 0 1\n");
+  const std::string camera = c.error(
+      R"({"meshes": [{"file": "v.nff", "transform": {"scale": 1e38}}]})");
+  EXPECT_NE(camera.find("\"meshes[0].transform\": moves the NFF camera of \"v.nff\" beyond the "
+                        "float range"),
+            std::string::npos)
+      << camera;
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "v.nff", "transform": {"scale": 5e37}}],
+                        "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 0]}})")
+                .find("moves the NFF lights of \"v.nff\""),
+            std::string::npos);
+}
+
+TEST(SceneJson, NegativeMaterialColoursAreRejected) {
+  JsonCase c;
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "diffuse": [0.5, -0.1, 0]}]})")
+                .find("\"materials[0].diffuse\": colour components must not be negative, got "
+                      "[0.5, -0.1, 0]"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "specular": [-1, 0, 0]}]})")
+                .find("\"materials[0].specular\": colour components must not be negative"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "emission": [0, 0, -2]}]})")
+                .find("\"materials[0].emission\": colour components must not be negative"),
+            std::string::npos);
+}
+
+TEST(SceneJson, TessellationIsChosenPerMeshEntry) {
+  JsonCase c;
+  (void)c.dir.write("s.nff", "s 0 0 0 1\nc 0 0 0 1 0 0 1 1\n");
+  const Scene scene = load_scene(c.write(R"({"meshes": [
+    {"file": "s.nff"},
+    {"file": "s.nff", "tessellation": {"sphere": 8}},
+    {"file": "s.nff", "tessellation": {"sphere": 2, "cone": 8}},
+    {"file": "./s.nff", "tessellation": {"sphere": 4, "cone": 16}}],
+    "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0]}})"));
+  ASSERT_EQ(scene.meshes.size(), 4u);
+  EXPECT_EQ(scene.meshes[0].triangles.size(), 192u + 32u);
+  EXPECT_EQ(scene.meshes[1].triangles.size(), 768u + 32u);
+  EXPECT_EQ(scene.meshes[2].triangles.size(), 48u + 16u);
+  EXPECT_EQ(scene.meshes[3].positions, scene.meshes[0].positions) << "the defaults, spelled out";
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"sphere": 0}}]})")
+                .find("\"meshes[0].tessellation.sphere\": must be in [1, 1024], got 0"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"cone": 65537}}]})")
+                .find("\"meshes[0].tessellation.cone\": must be in [3, 65536], got 65537"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"spheres": 3}}]})")
+                .find("unknown field \"meshes[0].tessellation.spheres\""),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": 4}]})")
+                .find("\"meshes[0].tessellation\": expected an object"),
+            std::string::npos);
+  EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "tessellation": {"sphere": 2}}]})")
+                .find("\"meshes[0].tessellation\": only .nff meshes are tessellated"),
+            std::string::npos);
+}
+
+TEST(SceneJson, MeshAndLightTracksAreReadAlike) {
+  JsonCase c;
+  const std::string mesh_twice = c.error(
+      R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": [{"frame": 0}]}, {"mesh": "tri", "keys": [{"frame": 1}]}]}})");
+  EXPECT_NE(mesh_twice.find("\"animation.meshes[1].mesh\": mesh already has a track"),
+            std::string::npos)
+      << mesh_twice;
+  const std::string light_twice = c.error(
+      R"({"mesh": "tri.obj", "lights": [{"position": [0, 0, 0]}], "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0, "position": [1, 1, 1]}]}, {"light": 0, "keys": [{"frame": 1, "position": [1, 1, 1]}]}]}})");
+  EXPECT_NE(light_twice.find("\"animation.lights[1].light\": light already has a track"),
+            std::string::npos)
+      << light_twice;
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 1, "position": [0, 0, 0]}, {"frame": 1, "position": [0, 0, 0]}]}]}})")
+          .find("\"animation.lights[0].keys\": two keys for frame 1"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})")
+          .find("\"animation.lights[0].keys\": a track needs at least one key"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0, "translate": [0, 0, 0]}]}]}})")
+          .find("unknown field \"animation.lights[0].keys[0].translate\""),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0}]}]}})")
+          .find("missing field \"animation.lights[0].keys[0].position\""),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 3, "keys": [{"frame": 0, "position": [0, 0, 0]}]}]}})")
+          .find("\"animation.lights[0].light\": must be in [0, 0], got 3"),
+      std::string::npos);
+  EXPECT_NE(
+      c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"keys": [{"frame": 0}]}]}})")
+          .find("missing field \"animation.meshes[0].mesh\""),
+      std::string::npos);
+  // Keys in any order come back sorted, for both kinds.
+  const Scene scene = load_scene(c.write(
+      R"({"mesh": "tri.obj", "lights": [{"position": [0, 0, 0]}], "animation": {"frames": [0, 9],
+        "meshes": [{"mesh": 0, "keys": [{"frame": 9}, {"frame": 2}, {"frame": 5}]}],
+        "lights": [{"light": 0, "keys": [{"frame": 7, "position": [7, 0, 0]}, {"frame": 1, "position": [1, 0, 0]}]}]}})"));
+  ASSERT_EQ(scene.animation.meshes.size(), 1u);
+  EXPECT_EQ(scene.animation.meshes[0].keys[0].frame, 2);
+  EXPECT_EQ(scene.animation.meshes[0].keys[2].frame, 9);
+  ASSERT_EQ(scene.animation.lights.size(), 1u);
+  EXPECT_EQ(scene.animation.lights[0].keys[0].position, glm::vec3(1, 0, 0));
+  EXPECT_EQ(scene.animation.lights[0].keys[1].frame, 7);
+}
+
 TEST(SceneJson, NffMeshBringsItsViewUnlessTheJsonGivesOne) {
   TempDir dir;
   (void)dir.write("s.nff",
@@ -345,6 +516,7 @@ TEST(SceneJson, DocumentedExampleLoads) {
   EXPECT_EQ(scene.name, "courtyard");
   ASSERT_EQ(scene.meshes.size(), 4u);
   EXPECT_EQ(scene.materials.at(scene.meshes[2].material_ids[0]).name, "chrome");
+  EXPECT_EQ(scene.meshes[2].triangles.size(), 768u) << "the ball's tessellation";
   EXPECT_EQ(scene.animation.frame_end, 47);
   EXPECT_EQ(scene.animation.camera.size(), 2u);
   EXPECT_EQ(scene.animation.meshes.size(), 2u);

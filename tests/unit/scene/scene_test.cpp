@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <random>
 
 #include "common/math/camera.h"
 #include "common/scene/load.h"
@@ -90,6 +91,92 @@ TEST(PoseAt, SlerpsRotations) {
   expect_near(glm::vec3(m[1]), {0, 1, 0});
 }
 
+glm::dquat random_unit_quaternion(std::mt19937& rng) {
+  std::normal_distribution<double> gauss;
+  return glm::normalize(glm::dquat(gauss(rng), gauss(rng), gauss(rng), gauss(rng)));
+}
+
+double distance(const glm::dquat& a, const glm::dquat& b) { return glm::length(a - b); }
+
+TEST(Slerp, MatchesGlmSlerp) {
+  const unsigned seed = 11;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> t(0.0, 1.0), tiny(-1e-4, 1e-4);
+  for (int i = 0; i < 20000; ++i) {
+    const glm::dquat a = random_unit_quaternion(rng);
+    // Every other pair nearly equal: the small angles where acos(dot) is ill-conditioned.
+    glm::dquat b = random_unit_quaternion(rng);
+    if (i % 2 == 1) b = glm::normalize(a + glm::dquat(tiny(rng), tiny(rng), tiny(rng), tiny(rng)));
+    const double u = t(rng);
+    ASSERT_LT(distance(slerp_shortest(a, b, u), glm::slerp(a, b, u)), 1e-9)
+        << "pair " << i << ", seed " << seed;
+  }
+}
+
+TEST(Slerp, TakesTheShorterArcAndHitsTheEnds) {
+  const glm::dquat a = rotation_deg_axis(10.0, {0, 1, 0});
+  const glm::dquat b = rotation_deg_axis(50.0, {0, 1, 0});
+  // -b is the same rotation as b: the path from a stays the 40 degree one.
+  const glm::dquat mid = slerp_shortest(a, -b, 0.5);
+  EXPECT_LT(distance(mid, rotation_deg_axis(30.0, {0, 1, 0})), 1e-15);
+  EXPECT_LT(distance(slerp_shortest(a, b, 0.0), a), 1e-15);
+  EXPECT_LT(distance(slerp_shortest(a, b, 1.0), b), 1e-15);
+  // 350 degrees about y is -10 degrees: a quarter of the way from 0 goes to -2.5 degrees.
+  const glm::dquat quarter =
+      slerp_shortest(glm::dquat(1, 0, 0, 0), rotation_deg_axis(350.0, {0, 1, 0}), 0.25);
+  EXPECT_LT(distance(quarter, rotation_deg_axis(-2.5, {0, 1, 0})), 1e-15);
+}
+
+TEST(Slerp, NearlyEqualQuaternionsFallBackToNormalisedLerp) {
+  const glm::dquat a = rotation_deg_axis(20.0, glm::normalize(glm::dvec3(1, 2, 3)));
+  const glm::dquat b = glm::normalize(a + glm::dquat(0, 1e-9, 0, 0));
+  for (const glm::dquat& end : {a, b}) {
+    const glm::dquat q = slerp_shortest(a, end, 0.3);
+    EXPECT_NEAR(glm::length(q), 1.0, 1e-15);
+    EXPECT_LT(distance(q, a), 1e-9);
+  }
+}
+
+TEST(RotationDegAxis, MatchesGlmAngleAxis) {
+  const glm::dvec3 axis = glm::normalize(glm::dvec3(1, -2, 0.5));
+  for (double degrees = -1000.0; degrees <= 1000.0; degrees += 7.25) {
+    const glm::dquat want = glm::angleAxis(glm::radians(degrees), axis);
+    EXPECT_LT(distance(rotation_deg_axis(degrees, axis), want), 1e-13) << degrees;
+  }
+  // 720 degrees is the identity; 1e300 degrees is reduced exactly instead of turning into noise.
+  EXPECT_EQ(rotation_deg_axis(720.0, axis), glm::dquat(1, 0, 0, 0));
+  const glm::dquat huge = rotation_deg_axis(1e300, axis);
+  EXPECT_NEAR(glm::length(huge), 1.0, 1e-15);
+  EXPECT_EQ(huge, rotation_deg_axis(std::fmod(1e300, 720.0), axis));
+}
+
+TEST(PoseAt, SlerpMatchesGlmForRandomKeys) {
+  const unsigned seed = 12;
+  std::mt19937 rng(seed);
+  Scene scene = animated_scene();
+  for (int i = 0; i < 200; ++i) {
+    const glm::dquat a = random_unit_quaternion(rng), b = random_unit_quaternion(rng);
+    scene.animation.meshes[0].keys[0].transform.rotate = glm::quat(a);
+    scene.animation.meshes[0].keys[1].transform.rotate = glm::quat(b);
+    const Transform& ka = scene.animation.meshes[0].keys[0].transform;
+    const Transform& kb = scene.animation.meshes[0].keys[1].transform;
+    const int frame = 11 + i % 9;
+    const double t = (frame - 10) / 10.0;
+    Transform want;
+    want.translate = glm::vec3(glm::mix(glm::dvec3(ka.translate), glm::dvec3(kb.translate), t));
+    const glm::dquat qa(ka.rotate.w, ka.rotate.x, ka.rotate.y, ka.rotate.z);
+    const glm::dquat qb(kb.rotate.w, kb.rotate.x, kb.rotate.y, kb.rotate.z);
+    want.rotate = glm::quat(glm::slerp(glm::normalize(qa), glm::normalize(qb), t));
+    const glm::mat4 got = pose_at(scene, frame).world_from_object[0];
+    const glm::mat4 expected = want.matrix();
+    for (int c = 0; c < 4; ++c) {
+      for (int r = 0; r < 4; ++r) {
+        ASSERT_NEAR(got[c][r], expected[c][r], 1e-6) << "key pair " << i << ", seed " << seed;
+      }
+    }
+  }
+}
+
 TEST(PoseAt, HoldsTheNearestKeyOutsideTheKeyedRange) {
   const Scene scene = animated_scene();
   // Frames before the first key (10) hold it, exactly.
@@ -143,6 +230,16 @@ TEST(FrameAutomatically, WholeBoundingSphereIsInView) {
     EXPECT_LT(std::acos(glm::dot(glm::normalize(p - eye), forward)), half_fov);
   }
   EXPECT_NO_THROW(CameraRays(scene.camera, scene.width, scene.height));
+}
+
+TEST(FrameAutomatically, SceneTooLargeForTheCameraIsAnError) {
+  TempDir dir;
+  // Bounding radius 3.4e38: the camera would sit near 1e39, beyond the float range.
+  const auto obj = dir.write("huge.obj", "v -3e38 0 0\nv 3e38 0 0\nv 0 3e38 0\nf 1 2 3\n");
+  const std::string message = test::error_of([&] { (void)load_scene(obj); });
+  EXPECT_NE(message.find("huge.obj: the scene is too large for the automatic camera"),
+            std::string::npos)
+      << message;
 }
 
 TEST(FrameAutomatically, KeepsExistingLights) {

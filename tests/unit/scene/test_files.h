@@ -1,19 +1,25 @@
-// Helpers for the scene tests: a temporary folder for generated files, error capture and
-// the location of the shared scene pack.
+// Helpers for the scene tests: a temporary folder for generated files, error and warning
+// capture and the location of the shared scene pack.
 #pragma once
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cstring>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <unistd.h>
+
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
 
 #include "common/base/error.h"
 
@@ -64,6 +70,33 @@ std::string error_of(F&& f) {
   ADD_FAILURE() << "expected rtc::Error, nothing was thrown";
   return "";
 }
+
+/// Collects what the default logger logs while it lives (the last 256 messages).
+class CapturedLog {
+ public:
+  CapturedLog() : sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(256)) {
+    sink_->set_pattern("%l: %v");
+    spdlog::default_logger()->sinks().push_back(sink_);
+  }
+  ~CapturedLog() {
+    auto& sinks = spdlog::default_logger()->sinks();
+    sinks.erase(std::remove(sinks.begin(), sinks.end(), sink_), sinks.end());
+  }
+  CapturedLog(const CapturedLog&) = delete;
+  CapturedLog& operator=(const CapturedLog&) = delete;
+
+  /// The messages, one per element, as "level: message".
+  [[nodiscard]] std::vector<std::string> lines() const { return sink_->last_formatted(); }
+  /// How many messages contain `text`.
+  [[nodiscard]] std::size_t count(std::string_view text) const {
+    std::size_t n = 0;
+    for (const std::string& line : lines()) n += line.find(text) != std::string::npos ? 1 : 0;
+    return n;
+  }
+
+ private:
+  std::shared_ptr<spdlog::sinks::ringbuffer_sink_mt> sink_;
+};
 
 /// The scene pack folder (RTC_SHARED_SCENES), or "" when it is absent.
 inline std::filesystem::path scene_pack() {
