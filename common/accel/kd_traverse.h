@@ -12,6 +12,7 @@
 #include <cstdint>
 
 #include "common/accel/kd_tree.h"
+#include "common/accel/trace.h"
 #include "common/simd/simd.h"
 
 namespace rtc::RTC_ISA_NS {
@@ -190,6 +191,36 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     }
   }
 }
+
+/// Rays assembled lane by lane in plain arrays, then loaded into a packet in one go.
+template <int N>
+struct RayLanes {
+  float org[3][N] = {};
+  float dir[3][N] = {};
+  float t_min[N] = {};
+  float t_max[N] = {};
+  void set(int i, const RayQuery& q) {
+    for (int a = 0; a < 3; ++a) {
+      org[a][i] = q.org[a];
+      dir[a][i] = q.dir[a];
+    }
+    t_min[i] = q.t_min;
+    t_max[i] = q.t_max;
+  }
+  [[nodiscard]] RayQuery query(int i) const {
+    return RayQuery{{org[0][i], org[1][i], org[2][i]}, t_min[i], {dir[0][i], dir[1][i], dir[2][i]}, t_max[i]};
+  }
+  [[nodiscard]] RayPacket<N> packet() const {
+    RayPacket<N> p;
+    for (int a = 0; a < 3; ++a) {
+      p.org[a] = vfloat<N>::load(org[a]);
+      p.dir[a] = vfloat<N>::load(dir[a]);
+    }
+    p.t_min = vfloat<N>::load(t_min);
+    p.t_max = vfloat<N>::load(t_max);
+    return p;
+  }
+};
 
 /// Lane i of a packet as a one-ray packet.
 template <int N>

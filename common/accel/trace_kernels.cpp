@@ -11,27 +11,14 @@ constexpr int kWidth = 4;
 
 template <int N>
 void load(const RayQuery* rays, std::size_t count, RayPacket<N>& p, vbool<N>& active) {
-  alignas(64) float lanes[8][N];
+  RayLanes<N> lanes;
   unsigned mask = 0;
   for (int i = 0; i < N; ++i) {
     // Lanes past the end repeat the last ray (masked off) so they never slow the packet down.
-    const RayQuery& r = rays[std::min<std::size_t>(static_cast<std::size_t>(i), count - 1)];
-    lanes[0][i] = r.org.x;
-    lanes[1][i] = r.org.y;
-    lanes[2][i] = r.org.z;
-    lanes[3][i] = r.dir.x;
-    lanes[4][i] = r.dir.y;
-    lanes[5][i] = r.dir.z;
-    lanes[6][i] = r.t_min;
-    lanes[7][i] = r.t_max;
+    lanes.set(i, rays[std::min<std::size_t>(static_cast<std::size_t>(i), count - 1)]);
     if (static_cast<std::size_t>(i) < count) mask |= 1u << i;
   }
-  for (int a = 0; a < 3; ++a) {
-    p.org[a] = vfloat<N>::load(lanes[a]);
-    p.dir[a] = vfloat<N>::load(lanes[3 + a]);
-  }
-  p.t_min = vfloat<N>::load(lanes[6]);
-  p.t_max = vfloat<N>::load(lanes[7]);
+  p = lanes.packet();
   active = vbool<N>::from_bits(mask);
 }
 

@@ -29,36 +29,6 @@ struct Lanes {
   glm::vec3 color[N];   // radiance accumulated, already weighted
 };
 
-/// Rays assembled lane by lane in plain arrays, then loaded into a packet in one go.
-template <int N>
-struct RayLanes {
-  float org[3][N] = {};
-  float dir[3][N] = {};
-  float t_min[N] = {};
-  float t_max[N] = {};
-  void set(int i, const RayQuery& q) {
-    for (int a = 0; a < 3; ++a) {
-      org[a][i] = q.org[a];
-      dir[a][i] = q.dir[a];
-    }
-    t_min[i] = q.t_min;
-    t_max[i] = q.t_max;
-  }
-  [[nodiscard]] RayQuery query(int i) const {
-    return RayQuery{{org[0][i], org[1][i], org[2][i]}, t_min[i], {dir[0][i], dir[1][i], dir[2][i]}, t_max[i]};
-  }
-  [[nodiscard]] RayPacket<N> packet() const {
-    RayPacket<N> p;
-    for (int a = 0; a < 3; ++a) {
-      p.org[a] = vfloat<N>::load(org[a]);
-      p.dir[a] = vfloat<N>::load(dir[a]);
-    }
-    p.t_min = vfloat<N>::load(t_min);
-    p.t_max = vfloat<N>::load(t_max);
-    return p;
-  }
-};
-
 /// Closest hits of the lanes in `lanes_mask`, from rtc's kd-tree or the external tracer.
 template <int N>
 void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, RayHit (&out)[N]) {
