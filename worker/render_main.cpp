@@ -103,8 +103,7 @@ int run(int argc, char** argv) {
 
   rtc::Timer load_timer;
   rtc::Scene scene = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(scene_path);
-  if (width > 0) scene.width = width;
-  if (height > 0) scene.height = height;
+  if (width > 0 || height > 0) rtc::set_resolution(scene, width > 0 ? width : scene.width, height > 0 ? height : scene.height);
   if (spp > 0) scene.settings.spp = spp;
   if (max_depth >= 0) scene.settings.max_depth = max_depth;
   if (min_weight >= 0.0f) scene.settings.min_weight = min_weight;

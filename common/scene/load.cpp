@@ -64,6 +64,7 @@ void place_auto_camera(Scene& scene) {
   scene.camera.look_at = glm::vec3(center);
   scene.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
   scene.camera.vfov_deg = static_cast<float>(kVfovDeg);
+  scene.camera_automatic = true;
 }
 
 void place_default_light(Scene& scene) {
@@ -82,6 +83,17 @@ void place_default_light(Scene& scene) {
 void frame_automatically(Scene& scene) {
   place_auto_camera(scene);
   if (scene.lights.empty()) place_default_light(scene);
+}
+
+void set_resolution(Scene& scene, int width, int height) {
+  if (width <= 0 || height <= 0) {
+    throw Error(fmt::format("resolution must be positive, got {}x{}", width, height));
+  }
+  scene.width = width;
+  scene.height = height;
+  // An automatic camera was fitted to the old aspect ratio; fit it to the new one so nothing
+  // is cropped. A camera from the scene file stays as it is.
+  if (scene.camera_automatic) place_auto_camera(scene);
 }
 
 Scene load_scene(const std::filesystem::path& path) {

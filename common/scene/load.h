@@ -22,4 +22,8 @@ namespace rtc {
 /// Throws rtc::Error when the scene is too large for the camera to sit within float range.
 void frame_automatically(Scene& scene);
 
+/// Changes the image size; an automatically placed camera is fitted again to the new aspect
+/// ratio (Scene::camera_automatic). Throws rtc::Error for a non-positive size.
+void set_resolution(Scene& scene, int width, int height);
+
 }  // namespace rtc

@@ -134,6 +134,9 @@ struct Scene {
   glm::vec3 ambient{0.1f};  ///< ambient light, multiplied by the diffuse colour
   RenderSettings settings;
   Animation animation;
+  /// The camera was placed by the automatic framing (no camera in the file): a tool that
+  /// changes width/height should frame again (see set_resolution in load.h).
+  bool camera_automatic = false;
 
   /// Number of triangles over all meshes (after degenerate dropping).
   [[nodiscard]] std::uint64_t triangle_count() const;

@@ -232,6 +232,29 @@ TEST(FrameAutomatically, WholeBoundingSphereIsInView) {
   EXPECT_NO_THROW(CameraRays(scene.camera, scene.width, scene.height));
 }
 
+TEST(FrameAutomatically, SetResolutionRefitsAnAutomaticCameraOnly) {
+  TempDir dir;
+  const auto obj = dir.write("wide.obj", "v -10 0 0\nv 10 0 0\nv 0 1 0\nf 1 2 3\n");
+  Scene scene = load_scene(obj);
+  ASSERT_TRUE(scene.camera_automatic);
+  const glm::vec3 square_eye = scene.camera.eye;
+  // Portrait: the horizontal field of view is now the narrower one, so the camera moves back
+  // until the bounding sphere fits it.
+  set_resolution(scene, 200, 800);
+  EXPECT_EQ(scene.width, 200);
+  EXPECT_EQ(scene.height, 800);
+  const double before = glm::length(glm::dvec3(square_eye) - glm::dvec3(scene.camera.look_at));
+  const double after = glm::length(glm::dvec3(scene.camera.eye) - glm::dvec3(scene.camera.look_at));
+  EXPECT_GT(after, 1.5 * before);
+
+  Scene fixed = load_scene(obj);
+  fixed.camera_automatic = false;  // as for a camera given in the file
+  const Camera given = fixed.camera;
+  set_resolution(fixed, 200, 800);
+  EXPECT_EQ(fixed.camera, given);
+  EXPECT_THROW(set_resolution(fixed, 0, 10), Error);
+}
+
 TEST(FrameAutomatically, SceneTooLargeForTheCameraIsAnError) {
   TempDir dir;
   // Bounding radius 3.4e38: the camera would sit near 1e39, beyond the float range.
