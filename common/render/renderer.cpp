@@ -125,27 +125,24 @@ Renderer::Renderer(Scene scene, RenderOptions options)
 }
 
 std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
-  const RenderSettings settings = options_.settings.value_or(scene_.settings);
-  const FramePose pose = pose_at(scene_, frame);
   if (last_ && last_->frame == frame) return last_;
+  const FramePose pose = pose_at(scene_, frame);
   // Share the geometry and tree when no mesh moved: camera-only and light-only animations
   // then cost no rebuild and no copy.
-  if (last_) {
-    const FramePose prev = pose_at(scene_, last_->frame);
-    if (prev.world_from_object == pose.world_from_object) {
-      auto fs = std::make_shared<FrameState>(*last_);  // shares last_->geometry
-      fs->frame = frame;
-      fs->camera = pose.camera;
-      fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
-      fs->lights = pose.lights;
-      last_ = std::move(fs);
-      return last_;
-    }
+  if (last_ && last_world_from_object_ == pose.world_from_object) {
+    auto fs = std::make_shared<FrameState>(*last_);  // shares last_->geometry
+    fs->frame = frame;
+    fs->camera = pose.camera;
+    fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
+    fs->lights = pose.lights;
+    last_ = std::move(fs);
+    return last_;
   }
-  auto fs = build_frame_state(scene_, frame, settings, options_.kd);
+  auto fs = build_frame_state(scene_, frame, options_.settings.value_or(scene_.settings), options_.kd);
   fs->tracer = options_.tracer;
   spdlog::debug("frame {}: {}", frame, fs->geometry->tree.stats().to_string());
   last_ = std::move(fs);
+  last_world_from_object_ = pose.world_from_object;
   return last_;
 }
 

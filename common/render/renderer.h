@@ -3,6 +3,7 @@
 
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "common/accel/kd_tree.h"
 #include "common/base/isa.h"
@@ -58,6 +59,7 @@ class Renderer {
   RenderOptions options_;
   Isa isa_;
   std::shared_ptr<const FrameState> last_;
+  std::vector<glm::mat4> last_world_from_object_;  ///< the mesh placement last_ was built for
 };
 
 /// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests.

@@ -70,6 +70,25 @@ TEST(Renderer, AnimatedFramesAreDeterministicAndDiffer) {
   EXPECT_NE(a, render_hash(scene, 16, 2, true, scene.animation.frame_begin));
 }
 
+TEST(Renderer, CameraOnlyAnimationSharesGeometryAndMatchesAFreshBuild) {
+  Scene scene = small_default();
+  scene.animation.meshes.clear();  // nothing moves but the camera
+  scene.animation.frame_begin = 0;
+  scene.animation.frame_end = 4;
+  Camera moved = scene.camera;
+  moved.eye += glm::vec3(1.0f, 0.5f, -0.5f);
+  scene.animation.camera = {CameraKey{0, scene.camera}, CameraKey{4, moved}};
+  Renderer r(scene);
+  const auto first = r.prepare(0);
+  const auto later = r.prepare(3);
+  EXPECT_EQ(first->geometry.get(), later->geometry.get()) << "the tree should be shared, not rebuilt";
+  Renderer fresh(scene);
+  const auto direct = fresh.prepare(3);
+  EXPECT_NE(direct->geometry.get(), later->geometry.get());
+  EXPECT_EQ(image_hash(r.render_frame(*later, 16)), image_hash(fresh.render_frame(*direct, 16)));
+  EXPECT_NE(image_hash(r.render_frame(*first, 16)), image_hash(r.render_frame(*later, 16)));
+}
+
 TEST(Renderer, NoNanOrInfInPixels) {
   Renderer r(small_default());
   const auto fs = r.prepare(0);
