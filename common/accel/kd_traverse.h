@@ -15,6 +15,7 @@
 #include "common/accel/trace.h"
 #include "common/simd/simd.h"
 
+RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
 
 /// Rays of a packet, structure of arrays. Directions need not be normalised.
@@ -284,3 +285,4 @@ inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> a
 }
 
 }  // namespace rtc::RTC_ISA_NS
+RTC_ISA_END

@@ -4,6 +4,7 @@
 #include "common/accel/kd_traverse.h"
 #include "common/accel/trace.h"
 
+RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
 namespace {
 
@@ -77,3 +78,4 @@ const TraceKernels& trace_kernels_for_isa() {
 }
 
 }  // namespace rtc::RTC_ISA_NS
+RTC_ISA_END

@@ -17,6 +17,7 @@
 #include "common/render/render_kernels.h"
 #include "common/render/shading.h"
 
+RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
 namespace {
 
@@ -259,3 +260,4 @@ const RenderKernels& render_kernels_for_isa() {
 }
 
 }  // namespace rtc::RTC_ISA_NS
+RTC_ISA_END

@@ -15,6 +15,9 @@
 #include <cstdint>
 #include <cstring>
 
+#include "common/simd/isa_region.h"
+
+RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
 
 template <int N>
@@ -203,3 +206,4 @@ struct PacketVec3 {
 };
 
 }  // namespace rtc::RTC_ISA_NS
+RTC_ISA_END
