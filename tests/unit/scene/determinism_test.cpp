@@ -104,14 +104,7 @@ TEST(Determinism, TheGuardCountsLibmCalls) {
 }
 
 TEST(Determinism, PoseAtCallsNoLibm) {
-  Scene scene;
-  scene.materials.emplace_back();
-  Mesh mesh;
-  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-  mesh.triangles = {{0, 1, 2}};
-  mesh.material_ids = {0};
-  mesh.source_index = {0};
-  scene.meshes.push_back(mesh);
+  Scene scene = test::one_triangle_scene();
   scene.animation.frame_end = 10;
   MeshTrack track;
   Transform a, b;

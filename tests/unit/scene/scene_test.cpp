@@ -31,15 +31,8 @@ void expect_near(const glm::vec3& actual, const glm::vec3& expected, float toler
 
 /// A one-triangle scene with mesh and light tracks over frames 0..20.
 Scene animated_scene() {
-  Scene scene;
-  scene.materials.emplace_back();
-  Mesh mesh;
-  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-  mesh.triangles = {{0, 1, 2}};
-  mesh.material_ids = {0};
-  mesh.source_index = {0};
-  scene.meshes.push_back(mesh);
-  scene.meshes.push_back(mesh);
+  Scene scene = test::one_triangle_scene();
+  scene.meshes.push_back(scene.meshes[0]);
   scene.meshes[1].world_from_object = glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, -7));
   scene.lights = {PointLight{{0, 10, 0}, glm::vec3(1.0f)}};
   scene.animation.frame_begin = 0;

@@ -22,6 +22,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/base/error.h"
+#include "common/scene/scene.h"
 
 namespace rtc::test {
 
@@ -99,6 +100,19 @@ class CapturedLog {
 };
 
 /// The scene pack folder (RTC_SHARED_SCENES), or "" when it is absent.
+/// A scene with one material and one mesh holding one triangle, placed at the origin.
+inline Scene one_triangle_scene() {
+  Scene scene;
+  scene.materials.emplace_back();
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.triangles = {{0, 1, 2}};
+  mesh.material_ids = {0};
+  mesh.source_index = {0};
+  scene.meshes.push_back(mesh);
+  return scene;
+}
+
 inline std::filesystem::path scene_pack() {
   const std::filesystem::path pack = RTC_SHARED_SCENES;
   std::error_code ec;
