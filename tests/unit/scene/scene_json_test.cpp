@@ -1,5 +1,6 @@
 // The scene JSON format: every field of docs/scene-format.md, and the errors that name the
 // file and the field.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -12,6 +13,7 @@
 namespace rtc {
 namespace {
 
+using ::testing::HasSubstr;
 using test::error_of;
 using test::TempDir;
 
@@ -130,18 +132,14 @@ TEST(SceneJson, UnknownFieldsAreRejectedWithTheirFullPath) {
   EXPECT_NE(c.error(base).find("scene.json: unknown field \"animation.meshes[0].keyz\""),
             std::string::npos)
       << c.error(base);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "colour": 1})").find("unknown field \"colour\""),
-            std::string::npos);
-  EXPECT_NE(
-      c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0,0,1], "look_at": [0,0,0], "fov": 3}})")
-          .find("unknown field \"camera.fov\""),
-      std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"rotate": [1, 0, 0, 0]}}]})")
-                .find("unknown field \"meshes[0].transform.rotate\""),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "lights": [{"position": [0,0,0], "intensity": 2}]})")
-                .find("unknown field \"lights[0].intensity\""),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "colour": 1})"),
+              HasSubstr("unknown field \"colour\""));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0,0,1], "look_at": [0,0,0], "fov": 3}})"),
+              HasSubstr("unknown field \"camera.fov\""));
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"rotate": [1, 0, 0, 0]}}]})"),
+              HasSubstr("unknown field \"meshes[0].transform.rotate\""));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "lights": [{"position": [0,0,0], "intensity": 2}]})"),
+              HasSubstr("unknown field \"lights[0].intensity\""));
 }
 
 TEST(SceneJson, WrongTypesAndLengthsNameTheField) {
@@ -152,42 +150,34 @@ TEST(SceneJson, WrongTypesAndLengthsNameTheField) {
       eye.find("scene.json: field \"camera.eye\": expected an array of 3 numbers, got a string"),
       std::string::npos)
       << eye;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 1], "look_at": [0,0,0]}})")
-                .find("\"camera.eye\": expected an array of 3 numbers, got 2 elements"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "background": [0, "x", 0]})")
-                .find("\"background[1]\": expected a number"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": 7})").find("\"mesh\": expected a string, got an integer"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512]})")
-                .find("\"resolution\": expected 2 elements"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [512, 1.5]})")
-                .find("\"resolution[1]\": expected an integer"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "render": {"spp": 0}})")
-                .find("\"render.spp\": must be in [1, 4096]"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"([1, 2])").find("expected an object"), std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "reflective": 1}]})")
-                .find("\"materials[0].reflective\": expected true or false"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 1], "look_at": [0,0,0]}})"),
+              HasSubstr("\"camera.eye\": expected an array of 3 numbers, got 2 elements"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "background": [0, "x", 0]})"),
+              HasSubstr("\"background[1]\": expected a number"));
+  EXPECT_THAT(c.error(R"({"mesh": 7})"),
+              HasSubstr("\"mesh\": expected a string, got an integer"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "resolution": [512]})"),
+              HasSubstr("\"resolution\": expected 2 elements"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "resolution": [512, 1.5]})"),
+              HasSubstr("\"resolution[1]\": expected an integer"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "render": {"spp": 0}})"),
+              HasSubstr("\"render.spp\": must be in [1, 4096]"));
+  EXPECT_THAT(c.error(R"([1, 2])"),
+              HasSubstr("expected an object"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "reflective": 1}]})"),
+              HasSubstr("\"materials[0].reflective\": expected true or false"));
 }
 
 TEST(SceneJson, NegativeResolutionAndNonFiniteNumbersAreRejected) {
   JsonCase c;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "resolution": [-512, 512]})")
-                .find("\"resolution[0]\": must be in [1, 65536], got -512"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "resolution": [-512, 512]})"),
+              HasSubstr("\"resolution[0]\": must be in [1, 65536], got -512"));
   const std::string huge = c.error(R"({"mesh": "tri.obj", "ambient": [1e999, 0, 0]})");
   EXPECT_NE(huge.find("scene.json"), std::string::npos) << huge;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [1e300, 0, 0]})")
-                .find("\"ambient[0]\": number out of float range"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "ambient": [NaN, 0, 0]})")
-                .find("scene.json: JSON parse error at line 1"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "ambient": [1e300, 0, 0]})"),
+              HasSubstr("\"ambient[0]\": number out of float range"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "ambient": [NaN, 0, 0]})"),
+              HasSubstr("scene.json: JSON parse error at line 1"));
 }
 
 TEST(SceneJson, SyntaxErrorNamesLineAndColumn) {
@@ -205,9 +195,10 @@ TEST(SceneJson, MissingMeshFileNamesFieldAndPath) {
       message.find("scene.json: field \"meshes[1].file\": mesh file \"absent.ply\" not found"),
       std::string::npos)
       << message;
-  EXPECT_NE(c.error(R"({"name": "nothing"})").find("no geometry"), std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"name": "x"}]})").find("missing field \"meshes[0].file\""),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"name": "nothing"})"),
+              HasSubstr("no geometry"));
+  EXPECT_THAT(c.error(R"({"meshes": [{"name": "x"}]})"),
+              HasSubstr("missing field \"meshes[0].file\""));
 }
 
 TEST(SceneJson, BadMeshFileErrorsNameBothFiles) {
@@ -247,50 +238,33 @@ TEST(SceneJson, DefaultsWithoutCameraAndLights) {
 
 TEST(SceneJson, AnimationReferencesAreChecked) {
   JsonCase c;
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": "nope", "keys": [{"frame": 0}]}]}})")
-          .find("\"animation.meshes[0].mesh\": no mesh named \"nope\""),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 3, "keys": [{"frame": 0}]}]}})")
-          .find("\"animation.meshes[0].mesh\": must be in [0, 0]"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": [{"frame": 1}, {"frame": 1}]}]}})")
-          .find("two keys for frame 1"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": []}]}})")
-          .find("at least one key"),
-      std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [5, 1]}})")
-                .find("end frame before begin"),
-            std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "lights": [], "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})")
-          .find("the scene has no lights"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "camera": [{"eye": [0, 0, 1]}]}})")
-          .find("missing field \"animation.camera[0].frame\""),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "transform": {"rotate_deg_axis": [90, 0, 0, 0]}}]})")
-          .find("rotation axis must not be zero"),
-      std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "material": "gold"}]})")
-                .find("\"meshes[0].material\": no material named \"gold\""),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 0], "look_at": [0, 0, 0]}})")
-                .find("eye and look_at coincide"),
-            std::string::npos);
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": "nope", "keys": [{"frame": 0}]}]}})"),
+              HasSubstr("\"animation.meshes[0].mesh\": no mesh named \"nope\""));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 3, "keys": [{"frame": 0}]}]}})"),
+              HasSubstr("\"animation.meshes[0].mesh\": must be in [0, 0]"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": [{"frame": 1}, {"frame": 1}]}]}})"),
+              HasSubstr("two keys for frame 1"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"mesh": 0, "keys": []}]}})"),
+              HasSubstr("at least one key"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [5, 1]}})"),
+              HasSubstr("end frame before begin"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "lights": [], "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})"),
+              HasSubstr("the scene has no lights"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "camera": [{"eye": [0, 0, 1]}]}})"),
+              HasSubstr("missing field \"animation.camera[0].frame\""));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "transform": {"rotate_deg_axis": [90, 0, 0, 0]}}]})"),
+              HasSubstr("rotation axis must not be zero"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "meshes": [{"file": "tri.obj", "material": "gold"}]})"),
+              HasSubstr("\"meshes[0].material\": no material named \"gold\""));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 0], "look_at": [0, 0, 0]}})"),
+              HasSubstr("eye and look_at coincide"));
 }
 
 TEST(SceneJson, NegativeFramesAreRejected) {
@@ -300,27 +274,19 @@ TEST(SceneJson, NegativeFramesAreRejected) {
   EXPECT_NE(begin.find("scene.json: field \"animation.frames[0]\": frame -1 is negative"),
             std::string::npos)
       << begin;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [-9, -2]}})")
-                .find("\"animation.frames[0]\": frame -9 is negative"),
-            std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "camera": [{"frame": -3}]}})")
-          .find("\"animation.camera[0].frame\": frame -3 is negative"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "meshes": [{"mesh": 0, "keys": [{"frame": 0}, {"frame": -1}]}]}})")
-          .find("\"animation.meshes[0].keys[1].frame\": frame -1 is negative"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "lights": [{"light": 0, "keys": [{"frame": -7, "position": [0, 0, 0]}]}]}})")
-          .find("\"animation.lights[0].keys[0].frame\": frame -7 is negative"),
-      std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1000000001]}})")
-                .find("\"animation.frames[1]\": must be in"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [-9, -2]}})"),
+              HasSubstr("\"animation.frames[0]\": frame -9 is negative"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "camera": [{"frame": -3}]}})"),
+              HasSubstr("\"animation.camera[0].frame\": frame -3 is negative"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "meshes": [{"mesh": 0, "keys": [{"frame": 0}, {"frame": -1}]}]}})"),
+              HasSubstr("\"animation.meshes[0].keys[1].frame\": frame -1 is negative"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "lights": [{"light": 0, "keys": [{"frame": -7, "position": [0, 0, 0]}]}]}})"),
+              HasSubstr("\"animation.lights[0].keys[0].frame\": frame -7 is negative"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1000000001]}})"),
+              HasSubstr("\"animation.frames[1]\": must be in"));
 }
 
 TEST(SceneJson, TransformsBeyondTheFloatRangeAreRejected) {
@@ -334,19 +300,16 @@ TEST(SceneJson, TransformsBeyondTheFloatRangeAreRejected) {
                         "the float range"),
             std::string::npos)
       << placed;
-  EXPECT_NE(
-      c.error(
-           R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [0, 2e38, 0], "scale": [1, 2e38, 1], "rotate_deg_axis": [45, 0, 0, 1]}}]})")
-          .find("\"meshes[0].transform\": translate and scale"),
-      std::string::npos);
+  EXPECT_THAT(c.error(
+           R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [0, 2e38, 0], "scale": [1, 2e38, 1], "rotate_deg_axis": [45, 0, 0, 1]}}]})"),
+              HasSubstr("\"meshes[0].transform\": translate and scale"));
   const std::string key = c.error(
       R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "meshes": [{"mesh": 0, "keys": [{"frame": 0}, {"frame": 5, "translate": [3e38, 0, 0], "scale": 1e38}]}]}})");
   EXPECT_NE(key.find("\"animation.meshes[0].keys[1]\": translate and scale let mesh \"tri\""),
             std::string::npos)
       << key;
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"scale": [1, 1, 3.3e38]}}]})")
-                .find("\"meshes[0].transform.scale\": scale must be within 3e+38"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "tri.obj", "transform": {"scale": [1, 1, 3.3e38]}}]})"),
+              HasSubstr("\"meshes[0].transform.scale\": scale must be within 3e+38"));
   // Within the range: fine, also rotated.
   EXPECT_NO_THROW((void)load_scene(c.write(
       R"({"meshes": [{"file": "tri.obj", "transform": {"translate": [5e37, 0, 0], "scale": 1e38, "rotate_deg_axis": [45, 0, 0, 1]}}], "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 0]}})")));
@@ -358,24 +321,20 @@ TEST(SceneJson, TransformsBeyondTheFloatRangeAreRejected) {
                         "float range"),
             std::string::npos)
       << camera;
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "v.nff", "transform": {"scale": 5e37}}],
-                        "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 0]}})")
-                .find("moves the NFF lights of \"v.nff\""),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "v.nff", "transform": {"scale": 5e37}}],
+                        "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 0]}})"),
+              HasSubstr("moves the NFF lights of \"v.nff\""));
 }
 
 TEST(SceneJson, NegativeMaterialColoursAreRejected) {
   JsonCase c;
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "diffuse": [0.5, -0.1, 0]}]})")
-                .find("\"materials[0].diffuse\": colour components must not be negative, got "
-                      "[0.5, -0.1, 0]"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "specular": [-1, 0, 0]}]})")
-                .find("\"materials[0].specular\": colour components must not be negative"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "emission": [0, 0, -2]}]})")
-                .find("\"materials[0].emission\": colour components must not be negative"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "diffuse": [0.5, -0.1, 0]}]})"),
+              HasSubstr("\"materials[0].diffuse\": colour components must not be negative, got "
+                      "[0.5, -0.1, 0]"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "specular": [-1, 0, 0]}]})"),
+              HasSubstr("\"materials[0].specular\": colour components must not be negative"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "emission": [0, 0, -2]}]})"),
+              HasSubstr("\"materials[0].emission\": colour components must not be negative"));
 }
 
 TEST(SceneJson, TessellationIsChosenPerMeshEntry) {
@@ -392,21 +351,16 @@ TEST(SceneJson, TessellationIsChosenPerMeshEntry) {
   EXPECT_EQ(scene.meshes[1].triangles.size(), 768u + 32u);
   EXPECT_EQ(scene.meshes[2].triangles.size(), 48u + 16u);
   EXPECT_EQ(scene.meshes[3].positions, scene.meshes[0].positions) << "the defaults, spelled out";
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"sphere": 0}}]})")
-                .find("\"meshes[0].tessellation.sphere\": must be in [1, 1024], got 0"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"cone": 65537}}]})")
-                .find("\"meshes[0].tessellation.cone\": must be in [3, 65536], got 65537"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"spheres": 3}}]})")
-                .find("unknown field \"meshes[0].tessellation.spheres\""),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": 4}]})")
-                .find("\"meshes[0].tessellation\": expected an object"),
-            std::string::npos);
-  EXPECT_NE(c.error(R"({"meshes": [{"file": "tri.obj", "tessellation": {"sphere": 2}}]})")
-                .find("\"meshes[0].tessellation\": only .nff meshes are tessellated"),
-            std::string::npos);
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"sphere": 0}}]})"),
+              HasSubstr("\"meshes[0].tessellation.sphere\": must be in [1, 1024], got 0"));
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"cone": 65537}}]})"),
+              HasSubstr("\"meshes[0].tessellation.cone\": must be in [3, 65536], got 65537"));
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": {"spheres": 3}}]})"),
+              HasSubstr("unknown field \"meshes[0].tessellation.spheres\""));
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "s.nff", "tessellation": 4}]})"),
+              HasSubstr("\"meshes[0].tessellation\": expected an object"));
+  EXPECT_THAT(c.error(R"({"meshes": [{"file": "tri.obj", "tessellation": {"sphere": 2}}]})"),
+              HasSubstr("\"meshes[0].tessellation\": only .nff meshes are tessellated"));
 }
 
 TEST(SceneJson, MeshAndLightTracksAreReadAlike) {
@@ -421,36 +375,24 @@ TEST(SceneJson, MeshAndLightTracksAreReadAlike) {
   EXPECT_NE(light_twice.find("\"animation.lights[1].light\": light already has a track"),
             std::string::npos)
       << light_twice;
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 1, "position": [0, 0, 0]}, {"frame": 1, "position": [0, 0, 0]}]}]}})")
-          .find("\"animation.lights[0].keys\": two keys for frame 1"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})")
-          .find("\"animation.lights[0].keys\": a track needs at least one key"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0, "translate": [0, 0, 0]}]}]}})")
-          .find("unknown field \"animation.lights[0].keys[0].translate\""),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0}]}]}})")
-          .find("missing field \"animation.lights[0].keys[0].position\""),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 3, "keys": [{"frame": 0, "position": [0, 0, 0]}]}]}})")
-          .find("\"animation.lights[0].light\": must be in [0, 0], got 3"),
-      std::string::npos);
-  EXPECT_NE(
-      c.error(
-           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"keys": [{"frame": 0}]}]}})")
-          .find("missing field \"animation.meshes[0].mesh\""),
-      std::string::npos);
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 1, "position": [0, 0, 0]}, {"frame": 1, "position": [0, 0, 0]}]}]}})"),
+              HasSubstr("\"animation.lights[0].keys\": two keys for frame 1"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": []}]}})"),
+              HasSubstr("\"animation.lights[0].keys\": a track needs at least one key"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0, "translate": [0, 0, 0]}]}]}})"),
+              HasSubstr("unknown field \"animation.lights[0].keys[0].translate\""));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 0, "keys": [{"frame": 0}]}]}})"),
+              HasSubstr("missing field \"animation.lights[0].keys[0].position\""));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "lights": [{"light": 3, "keys": [{"frame": 0, "position": [0, 0, 0]}]}]}})"),
+              HasSubstr("\"animation.lights[0].light\": must be in [0, 0], got 3"));
+  EXPECT_THAT(c.error(
+           R"({"mesh": "tri.obj", "animation": {"frames": [0, 1], "meshes": [{"keys": [{"frame": 0}]}]}})"),
+              HasSubstr("missing field \"animation.meshes[0].mesh\""));
   // Keys in any order come back sorted, for both kinds.
   const Scene scene = load_scene(c.write(
       R"({"mesh": "tri.obj", "lights": [{"position": [0, 0, 0]}], "animation": {"frames": [0, 9],
