@@ -15,7 +15,7 @@ const TraceKernels& trace_kernels_for_isa();
 #endif
 
 const TraceKernels& trace_kernels(Isa isa) {
-  if (!cpu_supports(isa)) throw Error("this CPU does not support " + std::string(isa_name(isa)));
+  require_cpu_support(isa);
   switch (isa) {
 #ifdef RTC_HAVE_ISA_SSE42
     case Isa::Sse42:
@@ -24,7 +24,7 @@ const TraceKernels& trace_kernels(Isa isa) {
     default:
       break;
   }
-  throw Error("ISA " + std::string(isa_name(isa)) + " is not compiled into this build (RTC_ISAS)");
+  throw_isa_not_compiled(isa);
 }
 
 const TraceKernels& trace_kernels() { return trace_kernels(best_isa()); }

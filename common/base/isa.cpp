@@ -38,6 +38,14 @@ bool cpu_supports(Isa isa) {
   return false;
 }
 
+void require_cpu_support(Isa isa) {
+  if (!cpu_supports(isa)) throw Error("this CPU does not support " + std::string(isa_name(isa)));
+}
+
+void throw_isa_not_compiled(Isa isa) {
+  throw Error("ISA " + std::string(isa_name(isa)) + " is not compiled into this build (RTC_ISAS)");
+}
+
 std::vector<Isa> compiled_isas() {
   std::vector<Isa> out;
 #ifdef RTC_HAVE_ISA_SSE42

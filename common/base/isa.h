@@ -18,6 +18,11 @@ enum class Isa { Sse42 = 0, Avx2 = 1, Avx512 = 2 };
 [[nodiscard]] bool cpu_supports(Isa isa);
 /// The ISAs compiled into this binary, lowest first.
 [[nodiscard]] std::vector<Isa> compiled_isas();
+/// Throws rtc::Error unless this CPU can run kernels of that level (per-ISA kernel tables call
+/// it before handing out their entry points).
+void require_cpu_support(Isa isa);
+/// Throws the rtc::Error for a level the kernel tables were not built with (RTC_ISAS).
+[[noreturn]] void throw_isa_not_compiled(Isa isa);
 /// The best ISA that is both compiled in and supported by this CPU; throws rtc::Error when the
 /// CPU lacks even SSE4.2.
 [[nodiscard]] Isa best_isa();

@@ -21,7 +21,7 @@ const RenderKernels& render_kernels_for_isa();
 #endif
 
 const RenderKernels& render_kernels(Isa isa) {
-  if (!cpu_supports(isa)) throw Error("this CPU does not support " + std::string(isa_name(isa)));
+  require_cpu_support(isa);
   switch (isa) {
 #ifdef RTC_HAVE_ISA_SSE42
     case Isa::Sse42:
@@ -30,7 +30,7 @@ const RenderKernels& render_kernels(Isa isa) {
     default:
       break;
   }
-  throw Error("ISA " + std::string(isa_name(isa)) + " is not compiled into this build (RTC_ISAS)");
+  throw_isa_not_compiled(isa);
 }
 
 namespace {
