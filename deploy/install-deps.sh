@@ -8,6 +8,7 @@ packages=(
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libassimp-dev libtinyobjloader-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev iproute2 iperf3
   libembree-dev python3
 )
 

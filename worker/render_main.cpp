@@ -14,6 +14,7 @@
 #include <tbb/info.h>
 
 #include "common/base/error.h"
+#include "common/base/frame_range.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
@@ -21,60 +22,25 @@
 #include "common/image/image.h"
 #include "common/render/renderer.h"
 #include "common/scene/load.h"
+#include "common/scene/scene_cli.h"
 
 namespace {
 
-struct FrameRange {
-  int first = 0;
-  int last = 0;
-};
-
-// "A-B", "A" or "A-A"; both inclusive.
-FrameRange parse_frames(const std::string& text) {
-  FrameRange r;
-  try {
-    const std::size_t dash = text.find('-', 1);
-    std::size_t used = 0;
-    r.first = std::stoi(text.substr(0, dash), &used);
-    if (used != (dash == std::string::npos ? text.size() : dash)) throw std::invalid_argument(text);
-    r.last = r.first;
-    if (dash != std::string::npos) {
-      r.last = std::stoi(text.substr(dash + 1), &used);
-      if (used != text.size() - dash - 1) throw std::invalid_argument(text);
-    }
-  } catch (const std::exception&) {
-    throw rtc::Error("--frames: expected A-B or A, got \"" + text + "\"");
-  }
-  if (r.last < r.first) throw rtc::Error("--frames: " + text + " is an empty range");
-  if (r.first < 0) throw rtc::Error("--frames: " + text + ": frame numbers must be >= 0");
-  return r;
-}
-
 int run(int argc, char** argv) {
   CLI::App app{"rtc-render: render frames of a scene to image files (EXR, PNG) on this machine"};
-  std::string scene_path;
+  rtc::SceneCliOptions scene_options;
   std::string frames_text;
   std::string out_pattern;
-  int width = 0, height = 0, threads = 0, spp = 0, tile = 32, max_depth = -1;
-  float min_weight = -1.0f;
+  int threads = 0, tile = 32;
   std::string isa_text, log_level = "info";
   bool exr_float = false, single_rays = false, no_depth = false, no_normal = false;
-  app.add_option("scene", scene_path,
-                 "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
-                 "omitted: the built-in default scene");
+  rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
                  "output file pattern; #### is the zero-padded frame number; the extension picks the "
                  "format (.exr, .png) (default: out/<scene>_####.png)");
-  app.add_option("--width", width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
-  app.add_option("--height", height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
-  app.add_option("--spp", spp, "samples per pixel (default: the scene's, normally 1)")->check(CLI::Range(1, 4096));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
-  app.add_option("--max-depth", max_depth, "reflection bounces (default: the scene's, normally 5)")
-      ->check(CLI::Range(0, 64));
-  app.add_option("--min-weight", min_weight, "ray-weight cutoff for reflections (default: the scene's, 0.01)")
-      ->check(CLI::Range(0.0f, 1.0f));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of 2x2 packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
@@ -93,25 +59,17 @@ int run(int argc, char** argv) {
       throw rtc::Error(std::string("--isa: ") + e.what());
     }
   }
-  std::optional<FrameRange> requested_frames;
-  if (!frames_text.empty()) requested_frames = parse_frames(frames_text);
+  std::optional<rtc::FrameRange> requested_frames;
+  if (!frames_text.empty()) requested_frames = rtc::parse_frame_range(frames_text);
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   static_cast<std::size_t>(threads));
   }
 
-  rtc::Timer load_timer;
-  rtc::Scene scene = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(scene_path);
-  if (width > 0 || height > 0) rtc::set_resolution(scene, width > 0 ? width : scene.width, height > 0 ? height : scene.height);
-  if (spp > 0) scene.settings.spp = spp;
-  if (max_depth >= 0) scene.settings.max_depth = max_depth;
-  if (min_weight >= 0.0f) scene.settings.min_weight = min_weight;
-  spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
-               scene_path.empty() ? "(built-in default)" : scene_path, scene.meshes.size(),
-               scene.triangle_count(), scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
+  rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
 
-  const FrameRange frames = requested_frames.value_or(FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
+  const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
   if (out_pattern.empty()) {
     out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");

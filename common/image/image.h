@@ -52,7 +52,7 @@ struct ImageWriteOptions {
 /// Writes `image` in the format named by the extension (case-insensitive):
 ///   .exr         one part, channels "R" "G" "B" "A" (half or float per options), "Z" (float),
 ///                "N.X" "N.Y" "N.Z" (like RGBA), linear, zip compression;
-///   .png         8-bit sRGB RGBA (linear_to_srgb8 on RGB, alpha round(255 * a));
+///   .png         8-bit sRGB RGBA (linear_to_srgb8 on RGB, linear_to_unorm8 on alpha);
 ///   .tif/.tiff   32-bit float linear RGBA;
 ///   .jpg/.jpeg   8-bit sRGB RGB, alpha dropped;
 ///   .ppm         8-bit sRGB RGB (binary P6), alpha dropped.
@@ -93,6 +93,11 @@ std::uint8_t linear_to_srgb8(float linear);
 /// The float nearest to the exact linear value of sRGB code `v`;
 /// linear_to_srgb8(srgb8_to_linear(v)) == v for every v.
 float srgb8_to_linear(std::uint8_t v);
+
+/// A linear value in [0, 1] as an 8-bit code, as 8-bit files and rgba8 tiles store alpha:
+/// v * 255 + 0.5 truncated; NaN and values <= 0 give 0, values >= 1 give 255. The inverse is
+/// code / 255.0f (linear_to_unorm8(code / 255.0f) == code for every code). Thread-safe.
+std::uint8_t linear_to_unorm8(float value);
 
 /// The output file name for `frame` (>= 0):
 ///   "frames/f_####.exr" -> "frames/f_0007.exr" (a run of '#' gives the zero-padded width),

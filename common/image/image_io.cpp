@@ -71,12 +71,6 @@ std::string shape_problem(const Image& image) {
   return {};
 }
 
-std::uint8_t linear_to_unorm8(float value) {
-  if (!(value > 0.0f)) return 0;  // also NaN
-  if (value >= 1.0f) return 255;
-  return static_cast<std::uint8_t>(value * 255.0f + 0.5f);
-}
-
 // What goes to OpenImageIO: a spec and interleaved pixels in the spec's buffer type.
 struct Encoded {
   OIIO::ImageSpec spec;

@@ -1,4 +1,5 @@
-// Exact sRGB <-> 8-bit conversion from precomputed tables (see gen_srgb_tables.py).
+// 8-bit conversions: exact sRGB <-> 8-bit from precomputed tables (see gen_srgb_tables.py), and
+// the linear 8-bit alpha of PNG files and rgba8 tiles.
 #include "common/image/image.h"
 
 #include <array>
@@ -51,5 +52,11 @@ std::uint8_t linear_to_srgb8(float linear) {
 }
 
 float srgb8_to_linear(std::uint8_t v) { return kDecode[v]; }
+
+std::uint8_t linear_to_unorm8(float value) {
+  if (!(value > 0.0f)) return 0;  // also NaN
+  if (value >= 1.0f) return 255;
+  return static_cast<std::uint8_t>(value * 255.0f + 0.5f);
+}
 
 }  // namespace rtc

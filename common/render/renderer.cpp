@@ -35,18 +35,6 @@ const RenderKernels& render_kernels(Isa isa) {
 
 namespace {
 
-void check_settings(const RenderSettings& s) {
-  if (s.max_depth < 0 || s.max_depth > 64) {
-    throw Error("render settings: max_depth must be in [0, 64], got " + std::to_string(s.max_depth));
-  }
-  if (!(s.min_weight >= 0.0f) || !(s.min_weight <= 1.0f)) {
-    throw Error("render settings: min_weight must be in [0, 1], got " + std::to_string(s.min_weight));
-  }
-  if (s.spp < 1 || s.spp > 4096) {
-    throw Error("render settings: spp must be in [1, 4096], got " + std::to_string(s.spp));
-  }
-}
-
 // World-space geometry of all meshes at one pose. Transforms are applied in double and
 // rounded once, so an identity placement reproduces the file's coordinates exactly.
 void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
@@ -96,7 +84,7 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
 
 std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
                                               const KdBuildOptions& kd) {
-  check_settings(settings);
+  check_render_settings(settings);
   auto fs = std::make_shared<FrameState>();
   const FramePose pose = pose_at(scene, frame);
   fs->frame = frame;
@@ -120,7 +108,7 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
 Renderer::Renderer(Scene scene, RenderOptions options)
     : scene_(std::move(scene)), options_(std::move(options)), isa_(options_.isa.value_or(best_isa())) {
   (void)render_kernels(isa_);  // fail now, not in the first tile
-  check_settings(options_.settings.value_or(scene_.settings));
+  check_render_settings(options_.settings.value_or(scene_.settings));
   (void)CameraRays(scene_.camera, scene_.width, scene_.height);
 }
 

@@ -4,10 +4,12 @@
 #include "common/scene/scene.h"
 
 #include <cmath>
+#include <string>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "common/base/error.h"
 #include "common/math/det_math.h"
 
 namespace rtc {
@@ -51,6 +53,20 @@ glm::dvec3 mix3(const glm::vec3& a, const glm::vec3& b, double t) {
 }
 
 }  // namespace
+
+void check_render_settings(const RenderSettings& s) {
+  if (s.max_depth < 0 || s.max_depth > 64) {
+    throw Error("render settings: max_depth must be in [0, 64], got " +
+                std::to_string(s.max_depth));
+  }
+  if (!(s.min_weight >= 0.0f) || !(s.min_weight <= 1.0f)) {
+    throw Error("render settings: min_weight must be in [0, 1], got " +
+                std::to_string(s.min_weight));
+  }
+  if (s.spp < 1 || s.spp > 4096) {
+    throw Error("render settings: spp must be in [1, 4096], got " + std::to_string(s.spp));
+  }
+}
 
 glm::dquat slerp_shortest(const glm::dquat& a, const glm::dquat& b, double t) {
   // q and -q are the same rotation: take the one within 90 degrees (in 4D) of a.

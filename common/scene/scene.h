@@ -22,6 +22,10 @@ namespace rtc {
 /// an rtc::Error naming the field or line.
 inline constexpr double kMaxWorldCoordinate = 3.0e38;
 
+/// Largest frame number a scene may use (animation range and keys); frames are never negative
+/// (output file names number frames from 0). Keeps differences of frame numbers within int.
+inline constexpr int kMaxFrame = 1000000000;
+
 /// Phong material with a mirror term (Whitted). Colours are linear RGB.
 struct Material {
   std::string name = "default";
@@ -119,6 +123,11 @@ struct RenderSettings {
   float min_weight = 0.01f;   ///< ray-weight cutoff: reflections weaker than this are not traced
   int spp = 1;                ///< samples per pixel (deterministic pattern)
 };
+
+/// Throws rtc::Error("render settings: <field> must be in [lo, hi], got <value>") unless
+/// max_depth is in [0, 64], min_weight in [0, 1] and spp in [1, 4096]. The renderer and the
+/// scene deserializer both check with it.
+void check_render_settings(const RenderSettings& settings);
 
 /// A whole scene. Value type; copying copies the meshes.
 struct Scene {

@@ -297,8 +297,6 @@ void sort_keys(const Reader& r, std::vector<Key>& keys, const std::string& path)
   }
 }
 
-constexpr std::int64_t kMaxFrame = 1000000000;
-
 /// A frame number in [0, kMaxFrame]: output file names number frames from 0, and a pattern
 /// such as frame_%04d.png has no way to write a negative one.
 int frame_number(const Reader& r, const Json& j, const std::string& path) {

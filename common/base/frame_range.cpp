@@ -1,0 +1,30 @@
+// Frame ranges on command lines (see frame_range.h).
+#include "common/base/frame_range.h"
+
+#include <stdexcept>
+
+#include "common/base/error.h"
+
+namespace rtc {
+
+FrameRange parse_frame_range(const std::string& text, const std::string& option) {
+  FrameRange r;
+  try {
+    const std::size_t dash = text.find('-', 1);
+    std::size_t used = 0;
+    r.first = std::stoi(text.substr(0, dash), &used);
+    if (used != (dash == std::string::npos ? text.size() : dash)) throw std::invalid_argument(text);
+    r.last = r.first;
+    if (dash != std::string::npos) {
+      r.last = std::stoi(text.substr(dash + 1), &used);
+      if (used != text.size() - dash - 1) throw std::invalid_argument(text);
+    }
+  } catch (const std::exception&) {
+    throw Error(option + ": expected A-B or A, got \"" + text + "\"");
+  }
+  if (r.last < r.first) throw Error(option + ": " + text + " is an empty range");
+  if (r.first < 0) throw Error(option + ": " + text + ": frame numbers must be >= 0");
+  return r;
+}
+
+}  // namespace rtc

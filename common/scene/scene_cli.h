@@ -1,0 +1,53 @@
+// Command-line options shared by the programs that load a scene (rtc-render, rtc-master): the
+// scene file and the settings that override it, registered and applied the same way in both so
+// the same flags give the same pixels. Header-only; include it from mains only (needs CLI11).
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/base/timer.h"
+#include "common/scene/load.h"
+
+namespace rtc {
+
+struct SceneCliOptions {
+  std::string scene_path;  ///< empty: the built-in default scene
+  int width = 0, height = 0, spp = 0, max_depth = -1;
+  float min_weight = -1.0f;
+};
+
+/// Registers SCENE and --width --height --spp --max-depth --min-weight on `app`.
+inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
+  app.add_option("scene", o.scene_path,
+                 "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
+                 "omitted: the built-in default scene");
+  app.add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
+  app.add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));
+  app.add_option("--spp", o.spp, "samples per pixel (default: the scene's, normally 1)")->check(CLI::Range(1, 4096));
+  app.add_option("--max-depth", o.max_depth, "reflection bounces (default: the scene's, normally 5)")
+      ->check(CLI::Range(0, 64));
+  app.add_option("--min-weight", o.min_weight, "ray-weight cutoff for reflections (default: the scene's, 0.01)")
+      ->check(CLI::Range(0.0f, 1.0f));
+}
+
+/// Loads the scene (or the built-in one), applies the overrides and logs what was loaded.
+/// Throws rtc::Error naming the file for a bad scene.
+inline Scene load_scene_from_cli(const SceneCliOptions& o) {
+  Timer load_timer;
+  Scene scene = o.scene_path.empty() ? default_scene() : load_scene(o.scene_path);
+  if (o.width > 0 || o.height > 0) {
+    set_resolution(scene, o.width > 0 ? o.width : scene.width, o.height > 0 ? o.height : scene.height);
+  }
+  if (o.spp > 0) scene.settings.spp = o.spp;
+  if (o.max_depth >= 0) scene.settings.max_depth = o.max_depth;
+  if (o.min_weight >= 0.0f) scene.settings.min_weight = o.min_weight;
+  spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
+               o.scene_path.empty() ? "(built-in default)" : o.scene_path, scene.meshes.size(), scene.triangle_count(),
+               scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
+  return scene;
+}
+
+}  // namespace rtc

@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# One command for a local cluster: starts rtc-master plus N rtc-worker processes on this machine
+# (loopback, a free port), prints the master's frame-rate log, and leaves no process behind on
+# exit, error or Ctrl-C (Ctrl-C: the master finishes the frames in flight, then all stop).
+#
+# Usage: ./deploy/launch-local.sh [N] [SCENE] [-- extra rtc-master args]
+#   N      workers (default: the machine's core count); each gets cores/N threads (at least 1)
+#   SCENE  scene file (default: the built-in scene, its whole animation)
+#   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
+# Frames go to out/cluster/<scene>_####.png unless the extra args give --out.
+# Binaries come from $RTC_BUILD_DIR (default build/release); they are built when missing.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+build="${RTC_BUILD_DIR:-$root/build/release}"
+
+workers="$(nproc)"
+scene=()
+if [ $# -gt 0 ] && [ "$1" != "--" ]; then
+  if ! [[ "$1" =~ ^[0-9]+$ ]] || [ "$1" -lt 1 ]; then
+    echo "launch-local: N must be a positive number of workers, got \"$1\"" >&2
+    exit 2
+  fi
+  workers="$1"
+  shift
+fi
+if [ $# -gt 0 ] && [ "$1" != "--" ]; then
+  [ -f "$1" ] || { echo "launch-local: scene file $1 does not exist" >&2; exit 2; }
+  scene=("$1")
+  shift
+fi
+[ $# -gt 0 ] && [ "$1" = "--" ] && shift
+extra=("$@")
+
+if [ ! -x "$build/master/rtc-master" ] || [ ! -x "$build/worker/rtc-worker" ]; then
+  echo "launch-local: building rtc-master and rtc-worker in $build"
+  (cd "$root" && cmake --preset release >/dev/null && cmake --build --preset release --target rtc-master rtc-worker)
+fi
+
+has_out=0
+for a in "${extra[@]}"; do [ "$a" = "--out" ] && has_out=1; done
+if [ "$has_out" = 0 ]; then
+  name="default"
+  [ ${#scene[@]} -gt 0 ] && name="$(basename "${scene[0]%.*}")"
+  mkdir -p out/cluster
+  extra+=(--out "out/cluster/${name}_####.png")
+fi
+
+cores="$(nproc)"
+threads=$(( cores / workers ))
+[ "$threads" -ge 1 ] || threads=1
+run_dir="$(mktemp -d "${TMPDIR:-/tmp}/rtc-local.XXXXXX")"
+master_pid=""
+worker_pids=()
+
+cleanup() {
+  local status=$?
+  trap - EXIT INT TERM
+  if [ -n "$master_pid" ] && kill -0 "$master_pid" 2>/dev/null; then
+    kill -TERM "$master_pid" 2>/dev/null || true
+    wait "$master_pid" 2>/dev/null || true
+  fi
+  for pid in "${worker_pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  for pid in "${worker_pids[@]}"; do
+    for _ in $(seq 1 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$pid" 2>/dev/null || true
+    wait "$pid" 2>/dev/null || true
+  done
+  if [ "$status" -ne 0 ]; then
+    echo "launch-local: worker logs kept in $run_dir" >&2
+  else
+    rm -rf "$run_dir"
+  fi
+  exit "$status"
+}
+trap cleanup EXIT
+# Ctrl-C reaches the master directly (same process group): it finishes the frames in flight with
+# the workers, which run in their own sessions so the terminal's SIGINT does not stop them first.
+trap 'echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT TERM
+
+"$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" \
+  --min-workers "$workers" "${extra[@]}" &
+master_pid=$!
+for _ in $(seq 1 600); do
+  [ -s "$run_dir/address" ] && break
+  kill -0 "$master_pid" 2>/dev/null || { wait "$master_pid"; exit $?; }
+  sleep 0.1
+done
+[ -s "$run_dir/address" ] || { echo "launch-local: the master did not start listening within 60 s" >&2; exit 1; }
+address="$(cat "$run_dir/address")"
+echo "launch-local: master on $address; starting $workers workers with $threads threads each (logs in $run_dir)"
+for i in $(seq 1 "$workers"); do
+  setsid "$build/worker/rtc-worker" --connect "$address" --threads "$threads" --name "local-$i" \
+    --retry-seconds 10 > "$run_dir/worker-$i.log" 2>&1 &
+  worker_pids+=($!)
+done
+
+status=0
+while kill -0 "$master_pid" 2>/dev/null; do
+  status=0
+  wait "$master_pid" || status=$?  # a trapped signal interrupts wait: wait again
+done
+[ "$status" -eq 0 ] || echo "launch-local: rtc-master exited with status $status" >&2
+exit "$status"

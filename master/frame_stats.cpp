@@ -1,0 +1,141 @@
+// Per-frame and whole-run figures of the master (see frame_stats.h).
+#include "master/frame_stats.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+namespace rtc {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string link_text(double bytes_per_s, const std::string& source) {
+  if (bytes_per_s <= 0) return "link capacity unknown";
+  return fmt::format("{:.1f} Mbit/s {}", bytes_per_s * 8 / 1e6, source);
+}
+
+}  // namespace
+
+std::string format_frame_line(const FrameStats& s) {
+  std::string tiles;
+  for (const auto& [name, n] : s.tiles_by_worker) tiles += fmt::format(" {}:{}", name, n);
+  std::string line = fmt::format(
+      "frame {} [seq {}]: {:.1f} ms, {:.2f} fps | {:.3f} MB in, {:.1f} MB/s, {}+{} {:.2f}:1 | ", s.frame, s.sequence,
+      s.wall_ms, s.fps(), s.wire_bytes / 1e6, s.achieved_mb_per_s(), s.wire_format, s.compression, s.compression_ratio());
+  if (s.bound_fps() > 0) {
+    line += fmt::format("link bound {:.2f} fps ({})", s.bound_fps(), link_text(s.link_bytes_per_s, s.link_source));
+  } else {
+    line += "link bound unknown (not measured yet)";
+  }
+  line += " | tiles" + tiles;
+  if (s.reissued_tiles > 0) line += fmt::format(" | {} tail tiles re-issued, {} duplicates dropped", s.reissued_tiles, s.duplicate_tiles);
+  if (!s.written.empty()) line += " -> " + s.written;
+  return line;
+}
+
+std::string frame_json(const FrameStats& s) {
+  nlohmann::json j;
+  j["type"] = "frame";
+  j["sequence"] = s.sequence;
+  j["frame"] = s.frame;
+  j["wall_ms"] = s.wall_ms;
+  j["interval_ms"] = s.interval_ms;
+  j["fps"] = s.fps();
+  j["wire_bytes"] = s.wire_bytes;
+  j["pixel_bytes"] = s.pixel_bytes;
+  j["raw_bytes"] = s.raw_bytes;
+  j["compression_ratio"] = s.compression_ratio();
+  j["achieved_mb_per_s"] = s.achieved_mb_per_s();
+  j["wire_format"] = s.wire_format;
+  j["compression"] = s.compression;
+  j["link_mbit_per_s"] = s.link_bytes_per_s * 8 / 1e6;
+  j["link_source"] = s.link_source;
+  j["bound_fps"] = s.bound_fps();
+  j["duplicate_tiles"] = s.duplicate_tiles;
+  j["duplicate_bytes"] = s.duplicate_bytes;
+  j["reissued_tiles"] = s.reissued_tiles;
+  j["render_ms"] = s.render_ms;
+  j["rays"] = {{"primary", s.primary_rays}, {"shadow", s.shadow_rays}, {"reflection", s.reflection_rays}};
+  j["tiles_by_worker"] = s.tiles_by_worker;
+  if (!s.written.empty()) j["file"] = s.written;
+  return j.dump();
+}
+
+RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
+  RunSummary r;
+  r.frames = static_cast<std::uint32_t>(frames.size());
+  r.total_s = total_s;
+  if (frames.empty()) return r;
+  std::vector<double> fps, bound, bytes;
+  std::uint64_t raw = 0, pixel = 0, tiles = 0;
+  std::map<std::string, std::uint64_t> by_worker;
+  for (const FrameStats& f : frames) {
+    fps.push_back(f.fps());
+    if (f.bound_fps() > 0) bound.push_back(f.bound_fps());
+    bytes.push_back(static_cast<double>(f.wire_bytes));
+    raw += f.raw_bytes;
+    pixel += f.pixel_bytes;
+    r.duplicate_tiles += f.duplicate_tiles;
+    for (const auto& [name, n] : f.tiles_by_worker) {
+      by_worker[name] += n;
+      tiles += n;
+    }
+  }
+  r.median_fps = median(fps);
+  r.mean_fps = total_s > 0 ? frames.size() / total_s : 0;
+  r.median_bound_fps = median(bound);
+  r.median_bytes_per_frame = median(bytes);
+  r.compression_ratio = pixel > 0 ? static_cast<double>(raw) / pixel : 1.0;
+  for (const auto& [name, n] : by_worker) r.worker_share[name] = tiles ? static_cast<double>(n) / tiles : 0;
+  r.wire_format = frames.back().wire_format;
+  r.compression = frames.back().compression;
+  r.link_source = frames.back().link_source;
+  r.link_bytes_per_s = frames.back().link_bytes_per_s;
+  return r;
+}
+
+std::string format_summary(const RunSummary& s) {
+  std::string out = fmt::format("summary: {} frames in {:.2f} s: median {:.2f} fps, mean {:.2f} fps; {:.3f} MB/frame ({}+{} {:.2f}:1)",
+                                s.frames, s.total_s, s.median_fps, s.mean_fps, s.median_bytes_per_frame / 1e6,
+                                s.wire_format, s.compression, s.compression_ratio);
+  if (s.median_bound_fps > 0) {
+    out += fmt::format("; link bound {:.2f} fps ({}), achieved {:.1f}% of it", s.median_bound_fps,
+                       link_text(s.link_bytes_per_s, s.link_source), 100.0 * s.median_fps / s.median_bound_fps);
+  } else {
+    out += "; link bound unknown";
+  }
+  out += "; share";
+  for (const auto& [name, share] : s.worker_share) out += fmt::format(" {}:{:.1f}%", name, 100.0 * share);
+  if (s.duplicate_tiles > 0) out += fmt::format("; {} duplicate tiles dropped", s.duplicate_tiles);
+  return out;
+}
+
+std::string summary_json(const RunSummary& s) {
+  nlohmann::json j;
+  j["type"] = "summary";
+  j["frames"] = s.frames;
+  j["total_s"] = s.total_s;
+  j["median_fps"] = s.median_fps;
+  j["mean_fps"] = s.mean_fps;
+  j["median_bound_fps"] = s.median_bound_fps;
+  j["achieved_vs_bound"] = s.median_bound_fps > 0 ? s.median_fps / s.median_bound_fps : 0.0;
+  j["median_bytes_per_frame"] = s.median_bytes_per_frame;
+  j["compression_ratio"] = s.compression_ratio;
+  j["worker_share"] = s.worker_share;
+  j["duplicate_tiles"] = s.duplicate_tiles;
+  j["wire_format"] = s.wire_format;
+  j["compression"] = s.compression;
+  j["link_mbit_per_s"] = s.link_bytes_per_s * 8 / 1e6;
+  j["link_source"] = s.link_source;
+  return j.dump();
+}
+
+}  // namespace rtc

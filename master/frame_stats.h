@@ -1,0 +1,61 @@
+// Per-frame and whole-run figures of the master: frame rate, bytes on the wire, compression,
+// and the frame rate the link's bandwidth allows (link capacity / bytes per frame).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace rtc {
+
+struct FrameStats {
+  std::uint32_t sequence = 0;
+  int frame = 0;
+  double wall_ms = 0;      ///< first tile handed out -> last tile in
+  double interval_ms = 0;  ///< previous frame completed -> this one (wall_ms for the first)
+  std::uint64_t wire_bytes = 0;     ///< accepted tile results on the wire (headers included)
+  std::uint64_t pixel_bytes = 0;    ///< their pixel payloads as sent (compressed)
+  std::uint64_t raw_bytes = 0;      ///< their pixel payloads before compression
+  std::uint64_t duplicate_bytes = 0;  ///< re-issued copies that arrived second (dropped)
+  std::uint32_t duplicate_tiles = 0;
+  std::uint32_t reissued_tiles = 0;
+  double render_ms = 0;  ///< sum of the workers' tile times
+  std::uint64_t primary_rays = 0, shadow_rays = 0, reflection_rays = 0;
+  std::map<std::string, std::uint32_t> tiles_by_worker;
+  double link_bytes_per_s = 0;  ///< 0: unknown yet
+  std::string link_source;      ///< "given", "measured" or "unknown"
+  std::string wire_format, compression;
+  std::string written;  ///< output file, empty when frames are discarded
+
+  [[nodiscard]] double fps() const { return interval_ms > 0 ? 1000.0 / interval_ms : 0.0; }
+  [[nodiscard]] double achieved_mb_per_s() const { return interval_ms > 0 ? wire_bytes / interval_ms / 1000.0 : 0.0; }
+  [[nodiscard]] double compression_ratio() const { return pixel_bytes > 0 ? static_cast<double>(raw_bytes) / pixel_bytes : 1.0; }
+  /// Link capacity / bytes per frame; 0 when the capacity is unknown.
+  [[nodiscard]] double bound_fps() const { return link_bytes_per_s > 0 && wire_bytes > 0 ? link_bytes_per_s / wire_bytes : 0.0; }
+};
+
+/// One log line: "frame 3 [seq 3]: 41.2 ms, 24.3 fps | 1.23 MB in, 29.8 MB/s, rgba8+lz4 2.41:1 |
+/// link bound 10.2 fps (100.0 Mbit/s given) | tiles w1:150 w2:150".
+[[nodiscard]] std::string format_frame_line(const FrameStats& s);
+/// One JSON object (no newline) with every field above plus the derived figures.
+[[nodiscard]] std::string frame_json(const FrameStats& s);
+
+struct RunSummary {
+  std::uint32_t frames = 0;
+  double total_s = 0;
+  double median_fps = 0, mean_fps = 0;
+  double median_bound_fps = 0;  ///< 0 when unknown
+  double median_bytes_per_frame = 0;
+  double compression_ratio = 1;
+  std::map<std::string, double> worker_share;  ///< fraction of accepted tiles
+  std::uint32_t duplicate_tiles = 0;
+  std::string wire_format, compression, link_source;
+  double link_bytes_per_s = 0;
+};
+[[nodiscard]] RunSummary summarize(const std::vector<FrameStats>& frames, double total_s);
+/// Multi-line summary for the log.
+[[nodiscard]] std::string format_summary(const RunSummary& s);
+[[nodiscard]] std::string summary_json(const RunSummary& s);
+
+}  // namespace rtc

@@ -1,0 +1,62 @@
+// Background frame writer (see frame_writer.h).
+#include "master/frame_writer.h"
+
+#include <utility>
+
+#include "common/base/error.h"
+
+namespace rtc {
+
+FrameWriter::FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error)
+    : options_(std::move(options)), on_error_(std::move(on_error)), thread_([this] { loop(); }) {}
+
+FrameWriter::~FrameWriter() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void FrameWriter::submit(std::string path, Image image) {
+  {
+    std::lock_guard lock(mutex_);
+    queue_.emplace_back(std::move(path), std::move(image));
+  }
+  wake_.notify_all();
+}
+
+std::size_t FrameWriter::pending() const {
+  std::lock_guard lock(mutex_);
+  return queue_.size() + (busy_ ? 1 : 0);
+}
+
+void FrameWriter::flush() {
+  std::unique_lock lock(mutex_);
+  idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
+}
+
+void FrameWriter::loop() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+    if (queue_.empty()) return;  // stop_ and nothing left
+    auto [path, image] = std::move(queue_.front());
+    queue_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    std::string error;
+    try {
+      write_image(path, image, options_);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    if (!error.empty() && on_error_) on_error_(error);
+    lock.lock();
+    busy_ = false;
+    if (queue_.empty()) idle_.notify_all();
+  }
+}
+
+}  // namespace rtc

@@ -1,0 +1,43 @@
+// Writes finished frames on a thread of its own so the master's network thread never waits on
+// image encoding or the disk. Bounded: the master stops opening frames while it is full.
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "common/image/image.h"
+
+namespace rtc {
+
+class FrameWriter {
+ public:
+  /// `on_error` is called (on the writer thread) with "path: reason" when a write fails;
+  /// later frames are still attempted.
+  FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error);
+  ~FrameWriter();  ///< writes what is queued, then joins
+  FrameWriter(const FrameWriter&) = delete;
+  FrameWriter& operator=(const FrameWriter&) = delete;
+
+  void submit(std::string path, Image image);
+  [[nodiscard]] std::size_t pending() const;
+  /// Blocks until every submitted frame is written (or failed).
+  void flush();
+
+ private:
+  void loop();
+
+  ImageWriteOptions options_;
+  std::function<void(const std::string&)> on_error_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  std::deque<std::pair<std::string, Image>> queue_;
+  bool busy_ = false;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+}  // namespace rtc

@@ -1,0 +1,136 @@
+// rtc-master: splits frames of a scene into tiles, hands them to rtc-worker processes over TCP,
+// reassembles and writes the frames, and logs the frame rate next to the link-bound frame rate.
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/base/error.h"
+#include "common/base/frame_range.h"
+#include "common/base/log.h"
+#include "common/image/image.h"
+#include "common/image/pixel_format.h"
+#include "common/scene/scene_cli.h"
+#include "master/master_server.h"
+#include "protocol/auth.h"
+
+namespace {
+
+bool ends_with_exr(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".exr";
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"rtc-master: render frames of a scene on rtc-worker processes connected over TCP"};
+  rtc::SceneCliOptions scene_options;
+  rtc::MasterOptions o;
+  std::string frames_text, wire_text, compress_text = "none", token_file, log_level = "info";
+  bool exr_float = false, no_depth = false, no_normal = false;
+  rtc::add_scene_cli_options(app, scene_options);
+  app.add_option("--listen", o.listen, "HOST:PORT to accept workers on; port 0 picks a free one; a non-loopback "
+                                       "address needs --token-file")
+      ->capture_default_str();
+  auto* frames_opt = app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
+  app.add_option("--loop", o.loop_seconds, "render the frames over and over for this many seconds (a frame-rate run)")
+      ->check(CLI::Range(0.001, 1e9))
+      ->excludes(frames_opt);
+  app.add_option("--out", o.out_pattern,
+                 "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
+  app.add_option("--tile", o.tile_size, "tile size in pixels")->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--wire", wire_text, "pixel format on the wire: rgba8 (sRGB, 4 B/px), half (8 B/px), float (16 B/px); "
+                                      "default: rgba8, or half (float with --exr-float) for .exr output");
+  app.add_option("--compress", compress_text, "tile compression: none, lz4, zstd")->capture_default_str();
+  app.add_option("--link-mbps", o.link_mbps, "link capacity in Mbit/s for the bandwidth-limited frame rate "
+                                            "(default: measured on the first worker's connection)")
+      ->check(CLI::Range(0.001, 1e9));
+  app.add_option("--token-file", token_file, "file holding the shared token workers must prove (HMAC, never sent)");
+  app.add_option("--stats-json", o.stats_json, "write per-frame figures and a summary as JSON lines to this file");
+  app.add_option("--min-workers", o.min_workers, "start rendering once this many workers are ready")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--frames-in-flight", o.frames_in_flight, "frames handed out at once (workers never idle at frame ends)")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  app.add_option("--tiles-per-worker", o.tiles_per_worker, "tiles each worker holds at once (default: 2 x its threads + 2)")
+      ->check(CLI::Range(2, 4096));
+  app.add_option("--heartbeat-timeout", o.heartbeat_timeout_ms, "drop a worker silent for this many ms")
+      ->check(CLI::Range(100, 3600000))
+      ->capture_default_str();
+  app.add_option("--drain-seconds", o.drain_seconds, "after SIGINT/SIGTERM, time to finish the frames in flight")
+      ->check(CLI::Range(0, 3600))
+      ->capture_default_str();
+  app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening");
+  app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
+  app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
+  app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  rtc::init_logging(log_level);
+
+  // Options are checked before the (possibly long) scene load.
+  const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
+  if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
+  o.compression = *compression;
+  const bool exr = !o.out_pattern.empty() && ends_with_exr(o.out_pattern);
+  if (wire_text.empty()) {
+    o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half) : rtc::WireFormat::Rgba8;
+  } else {
+    const std::optional<rtc::WireFormat> wire = rtc::parse_wire_format(wire_text);
+    if (!wire) throw rtc::Error("--wire: expected rgba8, half or float, got \"" + wire_text + "\"");
+    o.wire = *wire;
+  }
+  if (exr && o.wire == rtc::WireFormat::Rgba8) {
+    throw rtc::Error("--wire rgba8 carries 8-bit sRGB pixels: EXR output (" + o.out_pattern + ") needs --wire half or float");
+  }
+  if (exr && exr_float && o.wire == rtc::WireFormat::Half) {
+    spdlog::warn("--exr-float with --wire half: the files hold half-precision values");
+  }
+  if (!exr && o.wire != rtc::WireFormat::Rgba8 && !o.out_pattern.empty()) {
+    spdlog::warn("--wire {} with 8-bit output ({}): the files equal rtc-render's only with --wire float or rgba8",
+                 rtc::wire_format_name(o.wire), o.out_pattern);
+  }
+  if (exr) {
+    o.channels = static_cast<std::uint8_t>((no_depth ? 0 : rtc::kChannelDepth) | (no_normal ? 0 : rtc::kChannelNormal));
+  }
+  o.write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
+  o.write_options.write_depth = !no_depth;
+  o.write_options.write_normal = !no_normal;
+  if (!token_file.empty()) o.token = rtc::protocol::read_token_file(token_file);
+  std::optional<rtc::FrameRange> requested;
+  if (!frames_text.empty()) requested = rtc::parse_frame_range(frames_text);
+
+  const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
+  if (scene.width > 32768 || scene.height > 32768) {
+    throw rtc::Error("scene " + (scene_options.scene_path.empty() ? std::string("(built-in)") : scene_options.scene_path) +
+                     ": " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                     " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
+  }
+  const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
+  o.first_frame = frames.first;
+  o.last_frame = frames.last;
+  o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
+  if (!o.out_pattern.empty()) {
+    const std::filesystem::path first_out(rtc::expand_frame_pattern(o.out_pattern, frames.first, o.multiple_frames));
+    const std::filesystem::path out_dir = first_out.parent_path().empty() ? "." : first_out.parent_path();
+    if (!std::filesystem::is_directory(out_dir)) {
+      throw rtc::Error("--out: " + first_out.string() + ": folder " + out_dir.string() + " does not exist");
+    }
+  }
+  return rtc::run_master(scene, o);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rtc-master: error: %s\n", e.what());
+    return 1;
+  }
+}

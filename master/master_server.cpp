@@ -1,0 +1,709 @@
+// rtc-master's server (see master_server.h). All state lives on the one thread that runs the
+// io_context: no locks, and every handler sees a consistent queue. Frames are encoded and
+// written by FrameWriter on a thread of its own.
+#include "master/master_server.h"
+
+#include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <set>
+#include <utility>
+
+#include <asio.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/base/error.h"
+#include "common/base/version.h"
+#include "common/scene/serialize.h"
+#include "master/frame_stats.h"
+#include "master/frame_writer.h"
+#include "master/tile_queue.h"
+#include "protocol/auth.h"
+#include "protocol/message.h"
+#include "protocol/net/connection.h"
+
+namespace rtc {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace proto = protocol;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+struct Worker {
+  enum class State { AwaitHello, AwaitAuth, Scene, Ready, Closed };
+
+  TileQueue::WorkerId id = 0;
+  std::shared_ptr<net::Connection> conn;
+  std::string label;  // "w3", used in the per-frame tile counts
+  State state = State::AwaitHello;
+  proto::Nonce nonce{};
+  proto::Hello hello;
+  std::unique_ptr<asio::steady_timer> auth_timer;
+  Clock::time_point last_heard;
+  std::set<std::uint32_t> announced;  // sequences whose FrameSettings it has
+  std::uint64_t scene_offset = 0;     // next scene byte to send
+  std::size_t max_outstanding = 2;
+  std::uint32_t threads = 1;
+  bool probing = false;
+  Clock::time_point probe_sent;
+  std::map<std::pair<std::uint32_t, std::uint32_t>, Clock::time_point> assigned_at;  // (seq, tile)
+  std::uint64_t tiles_accepted = 0;
+
+  [[nodiscard]] std::string describe() const {
+    std::string s = label + " (" + (hello.name.empty() ? std::string("?") : hello.name) + " at " + conn->peer();
+    if (hello.threads > 0) s += ", " + std::to_string(hello.threads) + " threads, " + hello.isa;
+    return s + ")";
+  }
+};
+
+struct OpenFrame {
+  std::uint32_t sequence = 0;
+  int frame = 0;
+  Image image;
+  bool started = false;
+  Clock::time_point started_at;
+  FrameStats stats;
+};
+
+class Master {
+ public:
+  Master(const Scene& scene, const MasterOptions& options)
+      : options_(options),
+        width_(scene.width),
+        height_(scene.height),
+        queue_(scene.width, scene.height, options.tile_size),
+        scene_bytes_(serialize_scene(scene)),
+        scene_hash_(proto::sha256(scene_bytes_)),
+        scene_name_(scene.name),
+        acceptor_(io_),
+        signals_(io_, SIGINT, SIGTERM),
+        tick_(io_) {
+    if (!options_.stats_json.empty()) {
+      stats_file_.open(options_.stats_json, std::ios::out | std::ios::trunc);
+      if (!stats_file_) throw Error("--stats-json: cannot open " + options_.stats_json + " for writing");
+    }
+    if (!options_.out_pattern.empty()) {
+      writer_ = std::make_unique<FrameWriter>(options_.write_options, [this](const std::string& error) {
+        asio::post(io_, [this, error] { fatal("writing frames: " + error); });
+      });
+    }
+    if (options_.link_mbps > 0) {
+      link_bytes_per_s_ = options_.link_mbps * 1e6 / 8;
+      link_source_ = "given";
+    }
+    next_frame_ = options_.first_frame;
+  }
+
+  int run() {
+    listen();
+    accept();
+    signals_.async_wait([this](const asio::error_code& ec, int signal) { on_signal(ec, signal); });
+    schedule_tick();
+    spdlog::info("scene {}: {} bytes serialized, sha256 {}…; {}x{}, {} tiles of {} px per frame; wire {}+{}", scene_name_,
+                 scene_bytes_.size(), proto::to_hex(scene_hash_).substr(0, 16), width_, height_,
+                 queue_.tiles_per_frame(), options_.tile_size, wire_format_name(options_.wire),
+                 compression_name(options_.compression));
+    io_.run();
+    if (writer_) writer_->flush();
+    const double total_s = run_started_ ? std::chrono::duration<double>(Clock::now() - run_start_).count() : 0.0;
+    const RunSummary summary = summarize(finished_, total_s);
+    spdlog::info("{}", format_summary(summary));
+    if (stats_file_.is_open()) {
+      stats_file_ << summary_json(summary) << '\n';
+      stats_file_.flush();
+    }
+    if (!fatal_error_.empty()) throw Error(fatal_error_);
+    return 0;
+  }
+
+ private:
+  // ---- listening and accepting -------------------------------------------------------------
+
+  void listen() {
+    const net::HostPort hp = net::parse_host_port(options_.listen, "--listen");
+    asio::ip::tcp::resolver resolver(io_);
+    asio::error_code ec;
+    const auto results = resolver.resolve(hp.host, std::to_string(hp.port),
+                                          asio::ip::resolver_base::passive | asio::ip::resolver_base::numeric_service, ec);
+    if (ec || results.empty()) throw Error("--listen " + options_.listen + ": cannot resolve " + hp.host + ": " + ec.message());
+    const asio::ip::tcp::endpoint endpoint = *results.begin();
+    if (!endpoint.address().is_loopback() && options_.token.empty()) {
+      throw Error("--listen " + options_.listen + " is not a loopback address: anyone who can reach it could take "
+                  "tiles and the scene; give --token-file so workers must prove the token");
+    }
+    acceptor_.open(endpoint.protocol(), ec);
+    if (!ec) acceptor_.set_option(asio::ip::tcp::acceptor::reuse_address(true), ec);
+    if (!ec) acceptor_.bind(endpoint, ec);
+    if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+    if (ec) throw Error("--listen " + options_.listen + ": " + ec.message());
+    const asio::ip::tcp::endpoint local = acceptor_.local_endpoint();
+    const std::string address = local.address().to_string();
+    listening_on_ = (local.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(local.port());
+    spdlog::info("rtc-master {} listening on {} ({}), waiting for {} worker{}", build_id(), listening_on_,
+                 options_.token.empty() ? "no token: loopback only" : "token required", options_.min_workers,
+                 options_.min_workers == 1 ? "" : "s");
+    if (!options_.ready_file.empty()) {
+      const std::string tmp = options_.ready_file + ".tmp";
+      {
+        std::ofstream f(tmp, std::ios::trunc);
+        f << listening_on_ << '\n';
+        if (!f) throw Error("--ready-file: cannot write " + tmp);
+      }
+      std::error_code fs_ec;
+      std::filesystem::rename(tmp, options_.ready_file, fs_ec);
+      if (fs_ec) throw Error("--ready-file: cannot rename " + tmp + ": " + fs_ec.message());
+    }
+  }
+
+  void accept() {
+    acceptor_.async_accept([this](const asio::error_code& ec, asio::ip::tcp::socket socket) {
+      if (ec == asio::error::operation_aborted || done_) return;
+      if (ec) {
+        // EMFILE and friends: log and keep accepting after a pause rather than spinning.
+        spdlog::warn("accept on {}: {}", listening_on_, ec.message());
+        auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::milliseconds(100));
+        timer->async_wait([this, timer](const asio::error_code&) { accept(); });
+        return;
+      }
+      on_accept(std::move(socket));
+      accept();
+    });
+  }
+
+  void on_accept(asio::ip::tcp::socket socket) {
+    const std::string peer = net::peer_name(socket);
+    const TileQueue::WorkerId id = ++last_worker_id_;
+    auto w = std::make_unique<Worker>();
+    w->id = id;
+    w->label = "w" + std::to_string(id);
+    w->conn = std::make_shared<net::Connection>(std::move(socket), peer);
+    w->nonce = proto::random_nonce();
+    w->last_heard = Clock::now();
+    w->auth_timer = std::make_unique<asio::steady_timer>(io_, std::chrono::milliseconds(options_.auth_timeout_ms));
+    w->auth_timer->async_wait([this, id](const asio::error_code& ec) {
+      if (ec) return;
+      Worker* worker = find(id);
+      if (worker && worker->state != Worker::State::Ready && worker->state != Worker::State::Scene &&
+          worker->state != Worker::State::Closed) {
+        reject(*worker, proto::ErrorCode::AuthFailed,
+               "did not authenticate within " + std::to_string(options_.auth_timeout_ms) + " ms");
+      }
+    });
+    Worker& ref = *w;
+    workers_.emplace(id, std::move(w));
+    spdlog::debug("connection from {} ({})", peer, ref.label);
+    ref.conn->start([this, id](proto::Message&& m, std::size_t wire) { on_message(id, std::move(m), wire); },
+                    [this, id](const std::string& reason) { on_close(id, reason); });
+    proto::Challenge challenge;
+    challenge.nonce = ref.nonce;
+    challenge.auth_required = !options_.token.empty();
+    challenge.master_build = build_id().substr(0, proto::kMaxName);
+    ref.conn->send(challenge);
+  }
+
+  Worker* find(TileQueue::WorkerId id) {
+    const auto it = workers_.find(id);
+    return it == workers_.end() || it->second->state == Worker::State::Closed ? nullptr : it->second.get();
+  }
+
+  // ---- messages --------------------------------------------------------------------------
+
+  void on_message(TileQueue::WorkerId id, proto::Message&& message, std::size_t wire) {
+    Worker* w = find(id);
+    if (!w) return;
+    w->last_heard = Clock::now();
+    current_type_ = proto::type_name(static_cast<std::uint16_t>(proto::type_of(message)));
+    std::visit([&](auto&& m) { handle(*w, std::move(m), wire); }, std::move(message));
+  }
+
+  void handle(Worker& w, proto::Hello&& m, std::size_t) {
+    if (w.state != Worker::State::AwaitHello) return unexpected(w, "Hello");
+    w.hello = std::move(m);
+    w.threads = std::max<std::uint32_t>(1, w.hello.threads);
+    w.state = Worker::State::AwaitAuth;
+  }
+
+  void handle(Worker& w, proto::Auth&& m, std::size_t) {
+    if (w.state != Worker::State::AwaitAuth) return unexpected(w, "Auth");
+    if (!options_.token.empty() && !proto::equal_constant_time(m.proof, proto::auth_proof(options_.token, w.nonce))) {
+      return reject(w, proto::ErrorCode::AuthFailed, "authentication failed (wrong token)");
+    }
+    w.auth_timer->cancel();
+    w.max_outstanding = options_.tiles_per_worker > 0 ? static_cast<std::size_t>(options_.tiles_per_worker)
+                                                      : std::max<std::size_t>(2, 2 * w.threads + 2);
+    if (w.hello.build_id != build_id()) {
+      spdlog::warn("{}: build \"{}\" differs from the master's \"{}\": its pixels may differ", w.describe(),
+                   w.hello.build_id, build_id());
+    }
+    proto::Welcome welcome;
+    welcome.worker_id = w.id;
+    welcome.heartbeat_ms = static_cast<std::uint32_t>(options_.heartbeat_ms);
+    welcome.max_outstanding = static_cast<std::uint32_t>(w.max_outstanding);
+    w.conn->send(welcome);
+    proto::SceneOffer offer;
+    offer.hash = scene_hash_;
+    offer.size = scene_bytes_.size();
+    offer.name = scene_name_.substr(0, proto::kMaxName);
+    w.conn->send(offer);
+    w.state = Worker::State::Scene;
+  }
+
+  void handle(Worker& w, proto::SceneRequest&& m, std::size_t) {
+    if (w.state != Worker::State::Scene || m.hash != scene_hash_) return unexpected(w, "SceneRequest");
+    if (m.have) {
+      spdlog::debug("{} has the scene already", w.describe());
+      return;
+    }
+    const TileQueue::WorkerId id = w.id;
+    w.scene_offset = 0;
+    w.conn->set_drained_handler([this, id] {
+      if (Worker* worker = find(id)) send_scene_chunks(*worker);
+    });
+    send_scene_chunks(w);
+  }
+
+  // Keeps at most a few chunks queued: a slow link holds the scene here, not in the socket queue.
+  void send_scene_chunks(Worker& w) {
+    while (w.scene_offset < scene_bytes_.size() && w.conn->queued_bytes() < 4 * proto::kMaxSceneChunk) {
+      proto::SceneChunk chunk;
+      chunk.hash = scene_hash_;
+      chunk.offset = w.scene_offset;
+      const std::size_t n = std::min<std::size_t>(proto::kMaxSceneChunk, scene_bytes_.size() - w.scene_offset);
+      chunk.bytes.assign(scene_bytes_.begin() + static_cast<std::ptrdiff_t>(w.scene_offset),
+                         scene_bytes_.begin() + static_cast<std::ptrdiff_t>(w.scene_offset + n));
+      w.scene_offset += n;
+      w.conn->send(chunk);
+    }
+    if (w.scene_offset >= scene_bytes_.size()) w.conn->set_drained_handler(nullptr);
+  }
+
+  void handle(Worker& w, proto::SceneReady&& m, std::size_t) {
+    if (w.state != Worker::State::Scene || m.hash != scene_hash_) return unexpected(w, "SceneReady");
+    w.state = Worker::State::Ready;
+    spdlog::info("worker {} joined: {} cores, build {}; scene ready in {} ms; {} tiles outstanding at most",
+                 w.describe(), w.hello.cores, w.hello.build_id, m.load_ms, w.max_outstanding);
+    if (link_bytes_per_s_ <= 0 && !probe_running_) {
+      proto::ProbeRequest probe;
+      probe.bytes = options_.probe_bytes;
+      w.probing = true;
+      w.probe_sent = Clock::now();
+      probe_running_ = true;
+      w.conn->send(probe);
+    }
+    maybe_start();
+    dispatch();
+  }
+
+  void handle(Worker& w, proto::ProbeData&& m, std::size_t wire) {
+    if (!w.probing) return unexpected(w, "ProbeData");
+    w.probing = false;
+    probe_running_ = false;
+    const double seconds = std::max(1e-6, std::chrono::duration<double>(Clock::now() - w.probe_sent).count());
+    link_bytes_per_s_ = static_cast<double>(wire) / seconds;
+    link_source_ = "measured";
+    spdlog::info("link measured on {}: {:.1f} Mbit/s ({:.1f} MiB in {:.1f} ms); the link bound uses it", w.describe(),
+                 link_bytes_per_s_ * 8 / 1e6, m.bytes.size() / 1048576.0, seconds * 1000);
+    dispatch();
+  }
+
+  void handle(Worker& w, proto::TileResult&& r, std::size_t wire) {
+    if (w.state != Worker::State::Ready) return unexpected(w, "TileResult");
+    if (!queue_.holds(w.id, static_cast<int>(r.sequence), r.tile)) {
+      return reject(w, proto::ErrorCode::Protocol,
+                    "sent a result for tile " + std::to_string(r.tile) + " of frame sequence " +
+                        std::to_string(r.sequence) + " that it was not given");
+    }
+    const TileRect& rect = queue_.rect(r.tile);
+    if (r.x != rect.x || r.y != rect.y || r.width != rect.width || r.height != rect.height ||
+        r.wire_format != static_cast<std::uint8_t>(options_.wire) ||
+        r.compression != static_cast<std::uint8_t>(options_.compression) || r.channels != options_.channels) {
+      return reject(w, proto::ErrorCode::Protocol,
+                    "tile " + std::to_string(r.tile) + " result does not match its assignment (rectangle or pixel format)");
+    }
+    const auto key = std::make_pair(r.sequence, r.tile);
+    const auto sent = w.assigned_at.find(key);
+    if (sent != w.assigned_at.end()) {
+      const double ms = ms_between(sent->second, Clock::now());
+      tile_latency_ms_ = tile_latency_ms_ <= 0 ? ms : 0.9 * tile_latency_ms_ + 0.1 * ms;
+      w.assigned_at.erase(sent);
+    }
+    const auto fit = frames_.find(r.sequence);
+    const bool already_done = fit == frames_.end() || queue_.tile_done(static_cast<int>(r.sequence), r.tile);
+    if (!already_done) {
+      const std::string error =
+          decode_tile_pixels(r.pixels, r.raw_size, static_cast<int>(r.width), static_cast<int>(r.height), options_.wire,
+                             options_.compression, r.channels, tile_);
+      if (!error.empty()) return reject(w, proto::ErrorCode::Protocol, "bad pixels in tile " + std::to_string(r.tile) + ": " + error);
+    }
+    const TileOutcome outcome = queue_.complete(w.id, static_cast<int>(r.sequence), r.tile);
+    if (outcome == TileOutcome::Accepted) {
+      OpenFrame& f = fit->second;
+      f.image.blit(tile_, static_cast<int>(r.x), static_cast<int>(r.y));
+      FrameStats& s = f.stats;
+      s.wire_bytes += wire;
+      s.pixel_bytes += r.pixels.size();
+      s.raw_bytes += r.raw_size;
+      s.render_ms += r.render_us / 1000.0;
+      s.primary_rays += r.primary_rays;
+      s.shadow_rays += r.shadow_rays;
+      s.reflection_rays += r.reflection_rays;
+      ++s.tiles_by_worker[w.label];
+      ++w.tiles_accepted;
+    } else if (fit != frames_.end()) {
+      ++fit->second.stats.duplicate_tiles;
+      fit->second.stats.duplicate_bytes += wire;
+    }
+    finish_frames();
+    dispatch();
+  }
+
+  void handle(Worker& w, proto::Heartbeat&& m, std::size_t) {
+    proto::HeartbeatAck ack;
+    ack.seq = m.seq;
+    ack.sent_us = m.sent_us;
+    w.conn->send(ack);
+  }
+  void handle(Worker&, proto::HeartbeatAck&&, std::size_t) {}
+
+  void handle(Worker& w, proto::ErrorMessage&& m, std::size_t) {
+    spdlog::error("{} reports an error (code {}): {}", w.describe(), static_cast<int>(m.code), m.text);
+    w.conn->close("it reported an error: " + m.text);
+  }
+
+  void handle(Worker& w, proto::Goodbye&& m, std::size_t) {
+    w.conn->close("it said goodbye: " + m.reason);
+  }
+
+  template <class M>
+  void handle(Worker& w, M&&, std::size_t) {
+    unexpected(w, current_type_);
+  }
+
+  void unexpected(Worker& w, const std::string& type) {
+    reject(w, proto::ErrorCode::Protocol, "sent an unexpected " + type + " message");
+  }
+
+  // Tells the peer why (if it is still listening), logs with its address, and closes it.
+  void reject(Worker& w, proto::ErrorCode code, const std::string& why) {
+    spdlog::warn("worker {}: {}; closing the connection", w.describe(), why);
+    proto::ErrorMessage error;
+    error.code = code;
+    error.text = why.substr(0, proto::kMaxText);
+    w.conn->send(error);
+    w.conn->close_after_flush(why);
+  }
+
+  void on_close(TileQueue::WorkerId id, const std::string& reason) {
+    const auto it = workers_.find(id);
+    if (it == workers_.end()) return;
+    Worker& w = *it->second;
+    const Worker::State was = w.state;
+    w.state = Worker::State::Closed;
+    if (w.auth_timer) w.auth_timer->cancel();
+    if (w.probing) probe_running_ = false;
+    const std::size_t requeued = queue_.worker_lost(id);
+    if (was == Worker::State::Ready || was == Worker::State::Scene) {
+      if (done_) {
+        spdlog::debug("worker {} closed: {}", w.describe(), reason);
+      } else {
+        spdlog::info("worker {} left: {}; {} tiles back in the queue", w.describe(), reason, requeued);
+      }
+    } else if (!done_) {
+      spdlog::warn("connection from {} closed before it authenticated: {}", w.conn->peer(), reason);
+    }
+    // Erase later: we may be inside one of this worker's handlers.
+    asio::post(io_, [this, id] {
+      workers_.erase(id);
+      if (done_ && workers_.empty()) io_.stop();
+      if (!done_) dispatch();
+    });
+  }
+
+  // ---- scheduling -------------------------------------------------------------------------
+
+  std::size_t ready_workers() const {
+    std::size_t n = 0;
+    for (const auto& [id, w] : workers_) n += w->state == Worker::State::Ready ? 1 : 0;
+    return n;
+  }
+
+  void maybe_start() {
+    if (run_started_ || ready_workers() < static_cast<std::size_t>(options_.min_workers)) return;
+    run_started_ = true;
+    run_start_ = Clock::now();
+    last_complete_ = run_start_;
+    spdlog::info("{} worker{} ready: rendering frames {}-{}{}", ready_workers(), ready_workers() == 1 ? "" : "s",
+                 options_.first_frame, options_.last_frame,
+                 options_.loop_seconds > 0 ? " in a loop for " + std::to_string(options_.loop_seconds) + " s" : "");
+  }
+
+  bool more_frames() const {
+    if (stopping_ || done_) return false;
+    if (options_.loop_seconds > 0) {
+      return !run_started_ || std::chrono::duration<double>(Clock::now() - run_start_).count() < options_.loop_seconds;
+    }
+    return next_frame_ <= options_.last_frame;
+  }
+
+  void open_frames() {
+    while (run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) && more_frames() &&
+           (!writer_ || writer_->pending() < 4)) {
+      OpenFrame f;
+      f.sequence = next_sequence_++;
+      f.frame = next_frame_;
+      f.image = Image(width_, height_, (options_.channels & kChannelDepth) != 0, (options_.channels & kChannelNormal) != 0);
+      f.stats.sequence = f.sequence;
+      f.stats.frame = f.frame;
+      f.stats.wire_format = std::string(wire_format_name(options_.wire));
+      f.stats.compression = std::string(compression_name(options_.compression));
+      queue_.open_frame(static_cast<int>(f.sequence));
+      frames_.emplace(f.sequence, std::move(f));
+      next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
+      if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
+    }
+  }
+
+  void dispatch() {
+    if (done_) return;
+    open_frames();
+    const Clock::time_point now = Clock::now();
+    const bool tail = queue_.waiting() == 0 && !more_frames();
+    // A tile is a straggler's when it has been out for 3 times the usual round trip (20 ms at least).
+    const auto reissue_before = now - std::chrono::microseconds(static_cast<std::int64_t>(
+                                          1000 * std::max(20.0, 3 * tile_latency_ms_)));
+    for (auto& [id, wp] : workers_) {
+      Worker& w = *wp;
+      if (w.state != Worker::State::Ready || w.probing) continue;
+      while (queue_.outstanding(w.id) < w.max_outstanding) {
+        std::optional<TileAssignment> a = queue_.next_for(w.id, now);
+        if (!a && tail && queue_.outstanding(w.id) < w.threads) a = queue_.reissue_for(w.id, reissue_before);
+        if (!a) break;
+        assign(w, *a, now);
+      }
+    }
+  }
+
+  void assign(Worker& w, const TileAssignment& a, Clock::time_point now) {
+    const auto sequence = static_cast<std::uint32_t>(a.frame);
+    OpenFrame& f = frames_.at(sequence);
+    if (!f.started) {
+      f.started = true;
+      f.started_at = now;
+    }
+    if (a.reissue) ++f.stats.reissued_tiles;
+    if (w.announced.insert(sequence).second) {
+      proto::FrameSettings settings;
+      settings.sequence = sequence;
+      settings.frame = f.frame;
+      settings.wire_format = static_cast<std::uint8_t>(options_.wire);
+      settings.compression = static_cast<std::uint8_t>(options_.compression);
+      settings.channels = options_.channels;
+      w.conn->send(settings);
+    }
+    proto::TileAssign t;
+    t.sequence = sequence;
+    t.frame = f.frame;
+    t.tile = a.rect.index;
+    t.x = a.rect.x;
+    t.y = a.rect.y;
+    t.width = a.rect.width;
+    t.height = a.rect.height;
+    w.assigned_at[{sequence, a.rect.index}] = now;
+    w.conn->send(t);
+  }
+
+  void finish_frames() {
+    while (const std::optional<int> done = queue_.pop_done_frame()) {
+      const auto sequence = static_cast<std::uint32_t>(*done);
+      auto node = frames_.extract(sequence);
+      OpenFrame& f = node.mapped();
+      const Clock::time_point now = Clock::now();
+      f.stats.wall_ms = ms_between(f.started_at, now);
+      f.stats.interval_ms = ms_between(std::max(last_complete_, f.started_at), now);
+      last_complete_ = now;
+      f.stats.link_bytes_per_s = link_bytes_per_s_;
+      f.stats.link_source = link_bytes_per_s_ > 0 ? link_source_ : "unknown";
+      for (auto& [id, w] : workers_) {
+        if (w->state != Worker::State::Closed && w->announced.erase(sequence)) {
+          proto::FrameEnd end;
+          end.sequence = sequence;
+          w->conn->send(end);
+        }
+      }
+      if (writer_) {
+        // With --loop the same scene frame comes round again: number files by sequence then.
+        const int number = options_.loop_seconds > 0 ? static_cast<int>(sequence) : f.frame;
+        f.stats.written = expand_frame_pattern(options_.out_pattern, number, options_.multiple_frames);
+        writer_->submit(f.stats.written, std::move(f.image));
+      }
+      spdlog::info("{}", format_frame_line(f.stats));
+      if (stats_file_.is_open()) {
+        stats_file_ << frame_json(f.stats) << '\n';
+        stats_file_.flush();
+      }
+      finished_.push_back(std::move(f.stats));
+    }
+    if (run_started_ && !more_frames() && queue_.frames_open() == 0) {
+      shutdown(stopping_ ? "the master was stopped" : "all frames done");
+    }
+  }
+
+  // ---- timers, signals, shutdown ----------------------------------------------------------
+
+  void schedule_tick() {
+    tick_.expires_after(std::chrono::milliseconds(20));
+    tick_.async_wait([this](const asio::error_code& ec) {
+      if (ec || done_) return;
+      on_tick();
+      schedule_tick();
+    });
+  }
+
+  void on_tick() {
+    const Clock::time_point now = Clock::now();
+    if (ms_between(last_heartbeat_, now) >= options_.heartbeat_ms) {
+      last_heartbeat_ = now;
+      ++heartbeat_seq_;
+      for (auto& [id, w] : workers_) {
+        if (w->state == Worker::State::Closed) continue;
+        if (ms_between(w->last_heard, now) > options_.heartbeat_timeout_ms) {
+          w->conn->close("missed heartbeats: nothing heard for " + std::to_string(options_.heartbeat_timeout_ms) + " ms");
+          continue;
+        }
+        if (w->state == Worker::State::Ready || w->state == Worker::State::Scene) {
+          proto::Heartbeat hb;
+          hb.seq = heartbeat_seq_;
+          hb.sent_us = static_cast<std::uint64_t>(
+              std::chrono::duration_cast<std::chrono::microseconds>(now.time_since_epoch()).count());
+          w->conn->send(hb);
+        }
+      }
+    }
+    if (ms_between(last_wait_log_, now) >= 5000 && ready_workers() == 0 && (!run_started_ || queue_.frames_open() > 0)) {
+      last_wait_log_ = now;
+      spdlog::info("waiting for workers on {}: {} ready, {} needed to start; {} tiles waiting", listening_on_,
+                   ready_workers(), options_.min_workers, queue_.waiting());
+    }
+    // The tail of a frame may need re-issuing although no message arrived.
+    if (run_started_) {
+      finish_frames();
+      dispatch();
+    }
+  }
+
+  void on_signal(const asio::error_code& ec, int signal) {
+    if (ec || done_) return;
+    const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+    if (stopping_ || queue_.frames_open() == 0) {
+      if (queue_.frames_open() > 0) spdlog::warn("{} again: abandoning the frames in flight", name);
+      abandon_open_frames();
+      shutdown(std::string("stopped by ") + name);
+      return;
+    }
+    stopping_ = true;
+    spdlog::info("{}: taking no new frames; finishing {} in flight (up to {} s; signal again to abandon them)", name,
+                 queue_.frames_open(), options_.drain_seconds);
+    signals_.async_wait([this](const asio::error_code& e, int s) { on_signal(e, s); });
+    drain_timer_ = std::make_unique<asio::steady_timer>(io_, std::chrono::seconds(options_.drain_seconds));
+    drain_timer_->async_wait([this](const asio::error_code& e) {
+      if (e || done_) return;
+      spdlog::warn("frames still in flight after {} s: abandoning them", options_.drain_seconds);
+      abandon_open_frames();
+      shutdown("drain time over");
+    });
+  }
+
+  void abandon_open_frames() {
+    for (const int sequence : queue_.open_frames()) {
+      const auto it = frames_.find(static_cast<std::uint32_t>(sequence));
+      if (it != frames_.end()) {
+        spdlog::warn("frame {} [seq {}] abandoned unfinished: not written", it->second.frame, sequence);
+        frames_.erase(it);
+      }
+      queue_.drop_frame(sequence);
+    }
+  }
+
+  void fatal(const std::string& error) {
+    if (fatal_error_.empty()) fatal_error_ = error;
+    spdlog::error("{}", error);
+    abandon_open_frames();
+    shutdown("the master failed: " + error);
+  }
+
+  void shutdown(const std::string& reason) {
+    if (done_) return;
+    done_ = true;
+    spdlog::info("shutting down: {}", reason);
+    asio::error_code ec;
+    acceptor_.close(ec);
+    signals_.cancel(ec);
+    tick_.cancel();
+    if (drain_timer_) drain_timer_->cancel();
+    for (auto& [id, w] : workers_) {
+      if (w->state == Worker::State::Closed) continue;
+      if (w->auth_timer) w->auth_timer->cancel();
+      proto::Goodbye bye;
+      bye.reason = reason.substr(0, proto::kMaxText);
+      w->conn->send(bye);
+      w->conn->close_after_flush("goodbye sent");
+    }
+    if (workers_.empty()) io_.stop();
+    stop_timer_ = std::make_unique<asio::steady_timer>(io_, std::chrono::seconds(3));
+    stop_timer_->async_wait([this](const asio::error_code& e) {
+      if (!e) io_.stop();
+    });
+  }
+
+  MasterOptions options_;
+  int width_, height_;
+  TileQueue queue_;
+  std::vector<std::uint8_t> scene_bytes_;
+  proto::Digest scene_hash_;
+  std::string scene_name_;
+
+  asio::io_context io_;
+  asio::ip::tcp::acceptor acceptor_;
+  asio::signal_set signals_;
+  asio::steady_timer tick_;
+  std::unique_ptr<asio::steady_timer> drain_timer_, stop_timer_;
+  std::string listening_on_;
+
+  std::map<TileQueue::WorkerId, std::unique_ptr<Worker>> workers_;
+  TileQueue::WorkerId last_worker_id_ = 0;
+  std::map<std::uint32_t, OpenFrame> frames_;
+  std::uint32_t next_sequence_ = 0;
+  int next_frame_ = 0;
+  Image tile_;  // scratch for decoding
+  std::string current_type_;  // of the message being handled, for errors
+  double tile_latency_ms_ = 0;
+
+  bool run_started_ = false;
+  Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_;
+  std::uint64_t heartbeat_seq_ = 0;
+  double link_bytes_per_s_ = 0;
+  std::string link_source_ = "unknown";
+  bool probe_running_ = false;
+  bool stopping_ = false;
+  bool done_ = false;
+  std::string fatal_error_;
+  std::unique_ptr<FrameWriter> writer_;
+  std::ofstream stats_file_;
+  std::vector<FrameStats> finished_;
+};
+
+}  // namespace
+
+int run_master(const Scene& scene, const MasterOptions& options) {
+  Master master(scene, options);
+  return master.run();
+}
+
+}  // namespace rtc

@@ -1,0 +1,47 @@
+// rtc-master's server: accepts workers over TCP, authenticates them, sends them the scene,
+// hands out tiles from the TileQueue, reassembles and writes frames, logs frame rates next to
+// the link-bound frame rate. One Asio thread owns all state; frames are written on another.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/image/image.h"
+#include "common/image/pixel_format.h"
+#include "common/scene/scene.h"
+
+namespace rtc {
+
+struct MasterOptions {
+  std::string listen = "127.0.0.1:7878";  ///< HOST:PORT; port 0 picks a free one
+  std::string token;                      ///< empty: no authentication (loopback only)
+  int tile_size = 32;
+  WireFormat wire = WireFormat::Rgba8;
+  Compression compression = Compression::None;
+  std::uint8_t channels = 0;  ///< kChannelDepth / kChannelNormal carried for EXR output
+  double link_mbps = 0;       ///< 0: measure on the first worker's connection
+  int min_workers = 1;        ///< no frame starts before this many workers are ready
+  int frames_in_flight = 2;
+  int tiles_per_worker = 0;   ///< K; 0: 2 x the worker's threads + 2 (at least 2)
+  int first_frame = 0, last_frame = 0;  ///< inclusive
+  double loop_seconds = 0;  ///< > 0: cycle through the frames until this much time has passed
+  std::string out_pattern;  ///< empty: frames are discarded
+  bool multiple_frames = false;  ///< for expand_frame_pattern
+  ImageWriteOptions write_options;
+  std::string stats_json;   ///< JSON lines file, empty: none
+  std::string ready_file;   ///< gets "HOST:PORT\n" once listening (for scripts with port 0)
+  int heartbeat_ms = 1000;
+  int heartbeat_timeout_ms = 10000;  ///< silence after which a worker is dropped
+  int auth_timeout_ms = 10000;       ///< time a new connection has to authenticate
+  int drain_seconds = 30;            ///< after SIGINT/SIGTERM: time to finish frames in flight
+  std::uint32_t probe_bytes = 8u << 20;  ///< link measurement size
+};
+
+/// Runs until every frame is written (exit 0), a signal stops it (exit 0 after the frames in
+/// flight finish or are abandoned), or a fatal error (listen failure, unwritable output: throws
+/// rtc::Error). Returns the process exit code.
+int run_master(const Scene& scene, const MasterOptions& options);
+
+}  // namespace rtc

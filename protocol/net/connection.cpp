@@ -1,0 +1,188 @@
+// Framed rtc protocol connections over Asio TCP.
+#include "protocol/net/connection.h"
+
+#include <charconv>
+#include <cstring>
+#include <utility>
+
+#include "common/base/error.h"
+
+namespace rtc::net {
+
+std::string peer_name(const asio::ip::tcp::socket& socket) {
+  asio::error_code ec;
+  const asio::ip::tcp::endpoint ep = socket.remote_endpoint(ec);
+  if (ec) return "unknown peer";
+  const std::string address = ep.address().to_string();
+  return (ep.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(ep.port());
+}
+
+HostPort parse_host_port(const std::string& text, const std::string& what) {
+  const std::size_t colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == text.size()) {
+    throw Error(what + ": expected HOST:PORT, got \"" + text + "\"");
+  }
+  HostPort hp;
+  hp.host = text.substr(0, colon);
+  if (hp.host.size() > 2 && hp.host.front() == '[' && hp.host.back() == ']') hp.host = hp.host.substr(1, hp.host.size() - 2);
+  const std::string port = text.substr(colon + 1);
+  unsigned value = 0;
+  const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), value);
+  if (ec != std::errc() || end != port.data() + port.size() || value > 65535) {
+    throw Error(what + ": bad port \"" + port + "\" in \"" + text + "\" (expected 0-65535)");
+  }
+  hp.port = static_cast<std::uint16_t>(value);
+  return hp;
+}
+
+Connection::Connection(asio::ip::tcp::socket socket, std::string peer)
+    : socket_(std::move(socket)), peer_(std::move(peer)) {
+  asio::error_code ec;
+  socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // tiles are latency-bound at frame ends
+}
+
+Connection::~Connection() {
+  asio::error_code ec;
+  socket_.close(ec);
+}
+
+void Connection::start(MessageHandler on_message, CloseHandler on_close) {
+  on_message_ = std::move(on_message);
+  on_close_ = std::move(on_close);
+  read_header();
+}
+
+void Connection::read_header() {
+  if (closed_) return;
+  auto self = shared_from_this();
+  asio::async_read(socket_, asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
+    if (closed_) return;
+    if (ec) {
+      finish(ec == asio::error::eof ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
+      return;
+    }
+    const protocol::HeaderResult header = protocol::parse_header(header_buf_);
+    if (header.status != protocol::DecodeStatus::Complete) {
+      std::uint32_t magic = 0;
+      std::uint16_t version = 0;
+      std::memcpy(&magic, header_buf_.data(), sizeof magic);
+      std::memcpy(&version, header_buf_.data() + 4, sizeof version);
+      const bool version_mismatch = magic == protocol::kMagic && version != protocol::kVersion;
+      reject("bad message from " + peer_ + ": " + header.error,
+             version_mismatch ? protocol::ErrorCode::Version : protocol::ErrorCode::Protocol, header.error);
+      return;
+    }
+    read_payload(header.header);
+  });
+}
+
+void Connection::read_payload(protocol::Header header) {
+  payload_.resize(header.payload_length);
+  auto self = shared_from_this();
+  asio::async_read(socket_, asio::buffer(payload_), [this, self, header](const asio::error_code& ec, std::size_t) {
+    if (closed_) return;
+    if (ec) {
+      finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
+             std::to_string(header.payload_length) + " payload bytes announced): " +
+             (ec == asio::error::eof ? std::string("connection closed") : ec.message()));
+      return;
+    }
+    protocol::PayloadResult result = protocol::decode_payload(header, payload_);
+    if (result.status != protocol::DecodeStatus::Complete) {
+      reject("bad message from " + peer_ + ": " + result.error, protocol::ErrorCode::Protocol, result.error);
+      return;
+    }
+    const std::size_t wire = protocol::kHeaderSize + header.payload_length;
+    bytes_received_ += wire;
+    // Big payloads (tiles, scene chunks) are not kept around between messages.
+    if (payload_.capacity() > (1u << 20)) std::vector<std::uint8_t>().swap(payload_);
+    on_message_(std::move(result.message), wire);
+    read_header();
+  });
+}
+
+void Connection::send(const protocol::Message& message) {
+  if (closed_ || closing_after_flush_) return;
+  send_encoded(protocol::encode(message));
+}
+
+void Connection::send_encoded(std::vector<std::uint8_t> bytes) {
+  if (closed_ || closing_after_flush_ || bytes.empty()) return;
+  queued_bytes_ += bytes.size();
+  queue_.push_back(std::move(bytes));
+  if (!writing_) write_next();
+}
+
+void Connection::write_next() {
+  if (closed_) return;
+  if (queue_.empty()) {
+    writing_ = false;
+    if (closing_after_flush_) {
+      asio::error_code ec;
+      socket_.shutdown(asio::ip::tcp::socket::shutdown_send, ec);
+      finish(pending_close_reason_);
+      return;
+    }
+    if (on_drained_) on_drained_();
+    return;
+  }
+  writing_ = true;
+  auto self = shared_from_this();
+  asio::async_write(socket_, asio::buffer(queue_.front()), [this, self](const asio::error_code& ec, std::size_t n) {
+    if (closed_) return;
+    if (ec) {
+      finish("writing to " + peer_ + ": " + ec.message());
+      return;
+    }
+    bytes_sent_ += n;
+    queued_bytes_ -= queue_.front().size();
+    queue_.pop_front();
+    write_next();
+  });
+}
+
+void Connection::close(const std::string& reason) { finish(reason); }
+
+void Connection::reject(const std::string& reason, protocol::ErrorCode code, const std::string& text) {
+  // Tell the peer why when it can still listen (an old rtc build, a confused client), stop
+  // reading, and close once that is sent (bounded by close_after_flush's timeout).
+  protocol::ErrorMessage error;
+  error.code = code;
+  error.text = text.substr(0, protocol::kMaxText);
+  send(error);
+  close_after_flush(reason);
+}
+
+void Connection::close_after_flush(const std::string& reason, std::chrono::milliseconds timeout) {
+  if (closed_ || closing_after_flush_) return;
+  closing_after_flush_ = true;
+  pending_close_reason_ = reason;
+  if (!writing_) {
+    write_next();
+    return;
+  }
+  flush_timer_ = std::make_unique<asio::steady_timer>(socket_.get_executor(), timeout);
+  auto self = shared_from_this();
+  flush_timer_->async_wait([this, self](const asio::error_code& ec) {
+    if (!ec) finish(pending_close_reason_ + " (peer did not read the last bytes in time)");
+  });
+}
+
+void Connection::finish(const std::string& reason) {
+  if (closed_) return;
+  closed_ = true;
+  asio::error_code ec;
+  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
+  socket_.close(ec);
+  if (flush_timer_) flush_timer_->cancel();
+  queue_.clear();
+  queued_bytes_ = 0;
+  on_drained_ = nullptr;
+  // The handler may drop the last outside reference; `self` keeps us alive until it returns.
+  auto self = shared_from_this();
+  CloseHandler handler = std::move(on_close_);
+  on_message_ = nullptr;
+  if (handler) handler(reason);
+}
+
+}  // namespace rtc::net

@@ -1,0 +1,99 @@
+// One framed rtc protocol connection over TCP (Asio): reads whole messages, queues writes, and
+// closes on the first malformed byte with a reason naming the peer. Shared by master and worker.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <asio.hpp>
+
+#include "protocol/message.h"
+
+namespace rtc::net {
+
+/// "127.0.0.1:54321" for a connected socket ("unknown peer" if it has none).
+[[nodiscard]] std::string peer_name(const asio::ip::tcp::socket& socket);
+
+/// Parses "HOST:PORT" ("[v6]:PORT" for IPv6 literals); throws rtc::Error naming `what` and the
+/// text for a missing or bad port.
+struct HostPort {
+  std::string host;
+  std::uint16_t port = 0;
+};
+[[nodiscard]] HostPort parse_host_port(const std::string& text, const std::string& what);
+
+/// A framed message connection. Single-threaded: every member must be called on the thread
+/// running the io_context, and every handler runs there. Owned by shared_ptr (the pending
+/// operations keep it alive until it is closed).
+class Connection : public std::enable_shared_from_this<Connection> {
+ public:
+  /// Called with each complete, valid message and its size on the wire (header + payload).
+  using MessageHandler = std::function<void(protocol::Message&&, std::size_t wire_bytes)>;
+  /// Called exactly once, when the connection closes for any reason, with the reason.
+  using CloseHandler = std::function<void(const std::string& reason)>;
+
+  Connection(asio::ip::tcp::socket socket, std::string peer);
+  ~Connection();
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  /// Starts reading. A bad header, bad checksum or undecodable payload sends the peer an Error
+  /// (code Version for a version mismatch, else Protocol) and closes the connection with
+  /// "bad message from PEER: <decoder's reason>"; nothing more is read from it.
+  void start(MessageHandler on_message, CloseHandler on_close);
+
+  /// Queues a message (encoded now). Ignored after close.
+  void send(const protocol::Message& message);
+  /// Queues already-encoded bytes (one or more whole messages). Ignored after close.
+  void send_encoded(std::vector<std::uint8_t> bytes);
+
+  /// Closes now (pending writes are dropped) and reports `reason` to the close handler.
+  void close(const std::string& reason);
+  /// Sends what is queued, then closes; `reason` goes to the close handler. Bounded: the socket
+  /// is closed anyway after `timeout`.
+  void close_after_flush(const std::string& reason,
+                         std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
+
+  /// Called whenever the write queue becomes empty (e.g. to stream the next scene chunk).
+  void set_drained_handler(std::function<void()> on_drained) { on_drained_ = std::move(on_drained); }
+
+  [[nodiscard]] const std::string& peer() const { return peer_; }
+  [[nodiscard]] bool is_open() const { return !closed_; }
+  [[nodiscard]] std::size_t queued_bytes() const { return queued_bytes_; }
+  [[nodiscard]] std::uint64_t bytes_received() const { return bytes_received_; }
+  [[nodiscard]] std::uint64_t bytes_sent() const { return bytes_sent_; }
+
+ private:
+  /// Sends Error{code, text} to the peer, then closes with `reason`.
+  void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
+  void read_header();
+  void read_payload(protocol::Header header);
+  void write_next();
+  void finish(const std::string& reason);
+
+  asio::ip::tcp::socket socket_;
+  std::string peer_;
+  MessageHandler on_message_;
+  CloseHandler on_close_;
+  std::function<void()> on_drained_;
+  std::array<std::uint8_t, protocol::kHeaderSize> header_buf_{};
+  std::vector<std::uint8_t> payload_;
+  std::deque<std::vector<std::uint8_t>> queue_;
+  std::size_t queued_bytes_ = 0;
+  bool writing_ = false;
+  bool closed_ = false;
+  bool closing_after_flush_ = false;
+  std::string pending_close_reason_;
+  std::unique_ptr<asio::steady_timer> flush_timer_;
+  std::uint64_t bytes_received_ = 0;
+  std::uint64_t bytes_sent_ = 0;
+};
+
+}  // namespace rtc::net

@@ -1,0 +1,41 @@
+#!/usr/bin/env python3
+"""Turns tests/bench/cluster_bench.sh's JSON lines into a Markdown table."""
+import json
+import sys
+
+
+def main(path):
+    rows = [json.loads(line) for line in open(path) if line.strip()]
+    out = []
+    if any(r.get("type") == "render" for r in rows):
+        out.append("| scene | threads = workers | rtc-render fps (render only) | rtc-render fps (incl. PNG write) | cluster median fps | cluster / rtc-render |")
+        out.append("|---|---:|---:|---:|---:|---:|")
+        render = None
+        case = None
+        for r in rows:
+            if r["type"] == "render":
+                render = r
+            elif r["type"] == "cluster":
+                case = r
+            elif r["type"] == "summary" and render and case:
+                ratio = r["median_fps"] / render["median_fps_render_only"] if render["median_fps_render_only"] else 0
+                out.append(f"| {case['scene']} | {case['workers']} | {render['median_fps_render_only']:.2f} | "
+                           f"{render['median_fps_with_write']:.2f} | {r['median_fps']:.2f} | {ratio:.2f} |")
+    else:
+        out.append("| scene | size | wire | compress | MB/frame | ratio | link | bound fps | achieved fps | achieved / bound |")
+        out.append("|---|---:|---|---|---:|---:|---|---:|---:|---:|")
+        case = None
+        for r in rows:
+            if r["type"] == "case":
+                case = r
+            elif r["type"] == "summary" and case:
+                bound = r["median_bound_fps"]
+                link = f"{r['link_mbit_per_s']:.1f} Mbit/s {r['link_source']}"
+                out.append(f"| {case['scene']} | {case['size']} | {case['wire']} | {case['compress']} | "
+                           f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['compression_ratio']:.2f} | {link} | "
+                           f"{bound:.2f} | {r['median_fps']:.2f} | {r['median_fps'] / bound if bound else 0:.2f} |")
+    print("\n".join(out))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

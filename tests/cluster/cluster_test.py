@@ -1,0 +1,881 @@
+#!/usr/bin/env python3
+"""Cluster tests: real rtc-master and rtc-worker processes on loopback (port 0), every frame
+compared with rtc-render's bit for bit; workers killed, added and restarted, peers garbled on
+purpose. One case per ctest entry (tests/cluster/CMakeLists.txt).
+
+usage: cluster_test.py CASE --master RTC_MASTER --worker RTC_WORKER --render RTC_RENDER
+                       [--oiiotool OIIOTOOL] [--keep]
+
+Python 3 standard library only. Every wait has a deadline; every process started is killed by
+pid when the case ends (and dies with this script, PR_SET_PDEATHSIG); the temporary folder goes
+unless --keep. On failure the reason and the tail of every process log are printed.
+"""
+
+import argparse
+import ctypes
+import hashlib
+import hmac
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+import zlib
+
+# ---- wire protocol (protocol/protocol.md) -------------------------------------------------
+
+MAGIC = 0x31435452  # "RTC1"
+VERSION = 1
+HEADER = struct.Struct("<IHHII")  # magic, version, type, payload length, crc32 of the payload
+MSG_CHALLENGE, MSG_HELLO, MSG_AUTH, MSG_ERROR = 1, 2, 3, 14
+ERROR_AUTH_FAILED = 3
+AUTH_CONTEXT = b"rtc-auth-v1"
+
+# Small frames keep a case fast: a frame costs about one kd-tree build (~0.3 s) per worker.
+SMALL = ["--width", "96", "--height", "72"]
+MEDIUM = ["--width", "160", "--height", "120"]
+LARGE = ["--width", "320", "--height", "240"]
+
+
+class Failure(Exception):
+    """A check failed; the message says which and why."""
+
+
+def fail(reason):
+    raise Failure(reason)
+
+
+def message(msg_type, payload, version=VERSION, magic=MAGIC):
+    return HEADER.pack(magic, version, msg_type, len(payload), zlib.crc32(payload)) + payload
+
+
+def wire_str(data):
+    return struct.pack("<I", len(data)) + data
+
+
+def parse_messages(data):
+    """Splits received bytes into (type, payload) messages, checking each header and CRC."""
+    out = []
+    pos = 0
+    while len(data) - pos >= HEADER.size:
+        magic, version, msg_type, length, crc = HEADER.unpack_from(data, pos)
+        if magic != MAGIC or version != VERSION:
+            fail(f"the master sent a bad header at byte {pos}: magic {magic:#x}, version {version}")
+        if len(data) - pos - HEADER.size < length:
+            break
+        payload = data[pos + HEADER.size:pos + HEADER.size + length]
+        if zlib.crc32(payload) != crc:
+            fail(f"the master sent type {msg_type} with a CRC mismatch")
+        out.append((msg_type, payload))
+        pos += HEADER.size + length
+    return out
+
+
+def parse_challenge(payload):
+    if len(payload) < 37:
+        fail(f"Challenge of {len(payload)} bytes, expected at least 37")
+    nonce = payload[:32]
+    auth_required = payload[32]
+    (n,) = struct.unpack_from("<I", payload, 33)
+    return nonce, auth_required, payload[37:37 + n]
+
+
+def hello_payload(name, build):
+    return (struct.pack("<HII", VERSION, 2, 1) + wire_str(b"sse4.2") + wire_str(build) +
+            wire_str(name.encode()))
+
+
+# ---- processes ----------------------------------------------------------------------------
+
+try:
+    _LIBC = ctypes.CDLL(None, use_errno=True)
+except OSError:
+    _LIBC = None
+
+
+def _die_with_parent():
+    # PR_SET_PDEATHSIG (1): a child is killed when this script dies, even by SIGKILL.
+    if _LIBC is not None:
+        _LIBC.prctl(1, signal.SIGKILL, 0, 0, 0)
+
+
+def describe_rc(rc):
+    if rc is None:
+        return "still running"
+    if rc < 0:
+        return f"killed by signal {-rc} ({signal.Signals(-rc).name})"
+    return f"exit status {rc}"
+
+
+class Proc:
+    """One child process, stdout and stderr into one log file."""
+
+    def __init__(self, name, argv, log_path):
+        self.name = name
+        self.argv = [str(a) for a in argv]
+        self.log_path = log_path
+        self._log_file = open(log_path, "wb")
+        self.started = time.monotonic()
+        self.popen = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=self._log_file,
+                                      stderr=subprocess.STDOUT, preexec_fn=_die_with_parent)
+        self.pid = self.popen.pid
+
+    def poll(self):
+        return self.popen.poll()
+
+    def alive(self):
+        return self.popen.poll() is None
+
+    def send(self, sig):
+        if self.alive():
+            os.kill(self.pid, sig)
+
+    def wait(self, timeout, what):
+        try:
+            return self.popen.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            fail(f"{self.name} (pid {self.pid}) did not exit within {timeout} s: {what}")
+
+    def log(self):
+        try:
+            with open(self.log_path, "rb") as f:
+                return f.read().decode("utf-8", "replace")
+        except OSError:
+            return ""
+
+    def stop(self):
+        if self.alive():
+            self.popen.kill()
+        try:
+            self.popen.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            pass
+        self._log_file.close()
+
+
+def wait_for(predicate, timeout, what, watch=()):
+    """Polls predicate until true; fails after timeout or when a watched process exits."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        for p in watch:
+            if not p.alive():
+                if predicate():
+                    return predicate()
+                fail(f"{p.name} exited ({describe_rc(p.poll())}) while waiting for {what}")
+        if time.monotonic() > deadline:
+            fail(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def expect_exit(proc, want, timeout, what):
+    rc = proc.wait(timeout, what)
+    if rc != want:
+        fail(f"{proc.name}: {describe_rc(rc)}, expected exit status {want} ({what})")
+
+
+def expect_log(proc, pattern, what, timeout=10.0, watch=()):
+    """Waits until the process log has a line matching the regex; returns the match."""
+    rx = re.compile(pattern)
+
+    def found():
+        for line in proc.log().splitlines():
+            m = rx.search(line)
+            if m:
+                return m
+        return None
+
+    m = wait_for(found, timeout, f"{proc.name} to log {what} (/{pattern}/)", watch)
+    return m
+
+
+def read_stats(path):
+    """JSON lines of --stats-json: (frame records, summary or None). A torn last line is skipped."""
+    frames, summary = [], None
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except FileNotFoundError:
+        return frames, summary
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError:
+            if i == len(lines) - 1:
+                continue
+            fail(f"{path}: line {i + 1} is not JSON: {line[:200]}")
+        if record.get("type") == "frame":
+            frames.append(record)
+        elif record.get("type") == "summary":
+            summary = record
+    return frames, summary
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def split_address(address):
+    host, _, port = address.rpartition(":")
+    return host, int(port)
+
+
+class Case:
+    """Temporary folder, processes and helpers of one test case."""
+
+    def __init__(self, args):
+        self.args = args
+        self.tmp = tempfile.mkdtemp(prefix=f"rtc-cluster-{args.case}-")
+        self.procs = []
+        self.notes = []
+
+    def path(self, *parts):
+        return os.path.join(self.tmp, *parts)
+
+    def mkdir(self, name):
+        d = self.path(name)
+        os.makedirs(d, exist_ok=True)
+        return d
+
+    def spawn(self, name, argv):
+        p = Proc(name, argv, self.path(f"{name}.log"))
+        self.procs.append(p)
+        return p
+
+    def cleanup(self):
+        for p in self.procs:
+            p.stop()
+        if not self.args.keep:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+        else:
+            print(f"kept {self.tmp}")
+
+    def dump_logs(self, lines=40):
+        for p in self.procs:
+            print(f"--- {p.name} (pid {p.pid}, {describe_rc(p.poll())}): {' '.join(p.argv)}")
+            tail = p.log().splitlines()[-lines:]
+            for line in tail:
+                print(f"    {line}")
+
+    def note(self, text):
+        self.notes.append(text)
+        print(f"NOTE: {text}")
+
+    # -- the programs --
+
+    def start_master(self, name, args, listen="127.0.0.1:0", timeout=30):
+        """rtc-master with --listen and --ready-file; returns (proc, HOST:PORT, ready file)."""
+        ready = self.path(f"{name}.ready")
+        p = self.spawn(name, [self.args.master, *args, "--listen", listen, "--ready-file", ready])
+
+        def address():
+            try:
+                with open(ready, encoding="utf-8") as f:
+                    text = f.read()
+            except FileNotFoundError:
+                return None
+            return text.strip() if text.endswith("\n") else None
+
+        addr = wait_for(address, timeout, f"{name} to write its ready file", [p])
+        return p, addr, ready
+
+    def start_worker(self, name, address, threads=1, extra=()):
+        return self.spawn(name, [self.args.worker, "--connect", address, "--threads", str(threads),
+                                 "--name", name, *extra])
+
+    def render(self, name, args, timeout=90):
+        """rtc-render, waited for; fails unless it exits 0."""
+        p = self.spawn(name, [self.args.render, *args])
+        expect_exit(p, 0, timeout, "render the reference frames")
+        return p
+
+    def reference(self, name, scene_args, frames, ext, extra=()):
+        """Renders frames ("A-B") with rtc-render into a folder; returns the folder."""
+        out = self.mkdir(name)
+        self.render(f"{name}-render", [*scene_args, "--frames", frames, "--out",
+                                       os.path.join(out, f"r_####.{ext}"), *extra])
+        return out
+
+    # -- images --
+
+    def image_info(self, path):
+        """(size and channel formats, channel list, SHA-1 of the pixels) as oiiotool reports them."""
+        if not os.path.isfile(path):
+            fail(f"missing image {path}")
+        r = subprocess.run([self.args.oiiotool, "--info", "-v", "--hash", path], capture_output=True,
+                           text=True, timeout=60)
+        if r.returncode != 0:
+            fail(f"oiiotool cannot read {path}: {r.stdout}{r.stderr}")
+        desc = channels = sha1 = None
+        for line in r.stdout.splitlines():
+            m = re.match(r"^\S.*? :\s+(\d+\s+x\s+\d+,.*)$", line)
+            if m and desc is None:
+                desc = re.sub(r"\s+", " ", m.group(1))
+            m = re.search(r"channel list:\s*(.*)$", line)
+            if m and channels is None:
+                channels = m.group(1).strip()
+            m = re.search(r"SHA-1:\s*([0-9A-Fa-f]{40})", line)
+            if m and sha1 is None:
+                sha1 = m.group(1).upper()
+        if not (desc and channels and sha1):
+            fail(f"cannot parse oiiotool's report on {path}:\n{r.stdout}")
+        return desc, channels, sha1
+
+    def expect_same_image(self, got, want):
+        a, b = self.image_info(got), self.image_info(want)
+        if a != b:
+            r = subprocess.run([self.args.oiiotool, got, want, "--diff"], capture_output=True, text=True,
+                               timeout=60)
+            fail(f"{got} differs from rtc-render's {want}:\n  cluster: {a}\n  render:  {b}\n{r.stdout}")
+        return a
+
+    def expect_frames_equal(self, got_dir, got_prefix, ref_dir, frames, ext):
+        infos = []
+        for n in frames:
+            infos.append(self.expect_same_image(os.path.join(got_dir, f"{got_prefix}_{n:04d}.{ext}"),
+                                                os.path.join(ref_dir, f"r_{n:04d}.{ext}")))
+        return infos
+
+    # -- a whole cluster run --
+
+    def cluster_run(self, tag, scene_args, frames, ext, workers=1, threads=1, master_extra=(),
+                    worker_extra=(), timeout=90):
+        """Master plus `workers` workers rendering frames "A-B" into <tag>/m_####.<ext>; waits for
+        the master to exit 0 and every worker to exit 0 after its Goodbye. Returns
+        (out folder, stats frames, summary, master, workers)."""
+        out = self.mkdir(tag)
+        stats = self.path(f"{tag}-stats.json")
+        master, addr, _ = self.start_master(f"{tag}-master", [
+            *scene_args, "--frames", frames, "--out", os.path.join(out, f"m_####.{ext}"),
+            "--stats-json", stats, "--min-workers", str(workers), *master_extra])
+        ws = [self.start_worker(f"{tag}-w{i}", addr, threads, worker_extra) for i in range(workers)]
+        expect_exit(master, 0, timeout, "render every frame and exit")
+        for w in ws:
+            expect_exit(w, 0, 15, "exit 0 after the master's Goodbye")
+            expect_log(w, r"said goodbye", "the master's Goodbye", timeout=1)
+        frame_records, summary = read_stats(stats)
+        first, last = (int(x) for x in frames.split("-"))
+        got = sorted(f["frame"] for f in frame_records)
+        if got != list(range(first, last + 1)):
+            fail(f"{tag}: stats JSON has frames {got}, expected {first}-{last}")
+        if summary is None:
+            fail(f"{tag}: stats JSON has no summary line")
+        return out, frame_records, summary, master, ws
+
+
+def tiles_per_worker(frame_records):
+    total = {}
+    for f in frame_records:
+        for label, n in f["tiles_by_worker"].items():
+            total[label] = total.get(label, 0) + n
+    return total
+
+
+def worker_labels(master):
+    """{worker name: master label (w1, ...)} from the master's "joined" lines."""
+    labels = {}
+    for m in re.finditer(r"worker (w\d+) \((\S+) at ", master.log()):
+        labels.setdefault(m.group(2), m.group(1))
+    return labels
+
+
+# ---- cases --------------------------------------------------------------------------------
+
+def case_workers(c, n):
+    scene = [*SMALL, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-3", "png")
+    out, frames, summary, master, _ = c.cluster_run(f"run{n}", scene, "0-3", "png", workers=n, threads=1)
+    c.expect_frames_equal(out, "m", ref, range(0, 4), "png")
+    total = tiles_per_worker(frames)
+    print(f"tiles by worker over 4 frames: {total}")
+    if n > 1 and len([v for v in total.values() if v > 0]) < 2:
+        fail(f"with {n} workers only {sorted(total)} got tiles: {total}")
+    if sum(total.values()) != 4 * 30:
+        fail(f"stats count {sum(total.values())} tiles, expected 4 frames x 30")
+
+
+def case_workers_1(c):
+    case_workers(c, 1)
+
+
+def case_workers_2(c):
+    case_workers(c, 2)
+
+
+def case_workers_4(c):
+    case_workers(c, 4)
+
+
+def case_exr_half_and_float(c):
+    for tag, extra, fmt in (("half", [], "half"), ("float", ["--exr-float"], "float")):
+        ref = c.reference(f"ref-{tag}", SMALL, "0-1", "exr", extra)
+        out, frames, _, _, _ = c.cluster_run(tag, SMALL, "0-1", "exr", workers=2, master_extra=extra)
+        wires = {f["wire_format"] for f in frames}
+        if wires != {fmt}:
+            fail(f"{tag}: stats report wire {wires}, expected {fmt} by default")
+        for desc, channels, _ in c.expect_frames_equal(out, "m", ref, range(0, 2), "exr"):
+            for ch in ("R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z"):
+                if not re.search(rf"(^|, ){re.escape(ch)}( \(|,|$)", channels):
+                    fail(f"{tag}: channel {ch} missing from the EXR: {channels}")
+            if fmt not in desc:
+                fail(f"{tag}: EXR pixel types are {desc}, expected {fmt}")
+        print(f"{tag}: EXR frames equal rtc-render's ({desc}; {channels})")
+
+
+def case_wire_formats_compression(c):
+    ref = c.reference("ref", SMALL, "0-1", "png")
+    for wire, comp in (("rgba8", "lz4"), ("rgba8", "zstd"), ("float", "none")):
+        tag = f"{wire}-{comp}"
+        out, frames, summary, _, _ = c.cluster_run(tag, SMALL, "0-1", "png", workers=2,
+                                                   master_extra=["--wire", wire, "--compress", comp])
+        c.expect_frames_equal(out, "m", ref, range(0, 2), "png")
+        for record in [*frames, summary]:
+            if record.get("wire_format") != wire or record.get("compression") != comp:
+                fail(f"{tag}: stats record wire {record.get('wire_format')!r} compression "
+                     f"{record.get('compression')!r}: {record}")
+            ratio = record.get("compression_ratio")
+            if not isinstance(ratio, (int, float)):
+                fail(f"{tag}: no compression_ratio in {record}")
+            if comp != "none" and not ratio > 1:
+                fail(f"{tag}: compression ratio {ratio} is not above 1 in {record}")
+        print(f"{tag}: frames equal; compression ratio {summary['compression_ratio']:.2f}")
+
+
+def case_worker_killed_midframe(c):
+    scene = [*LARGE, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-5", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-5", "--out",
+                                                os.path.join(out, "m_####.png"), "--stats-json", stats,
+                                                "--min-workers", "2"])
+    keeper = c.start_worker("keeper", addr, 1)
+    victim = c.start_worker("victim", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
+    if not master.alive():
+        fail("the master finished before the worker could be killed")
+    victim.send(signal.SIGKILL)
+    expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
+    m = expect_log(master, r"worker w\d+ \(victim at [^)]*\) left: .*; (\d+) tiles back in the queue",
+                   "that the killed worker left", watch=[master])
+    print(f"master: {m.group(0)}")
+    if int(m.group(1)) < 1:
+        fail(f"the killed worker held no tiles (expected some back in the queue): {m.group(0)}")
+    expect_exit(master, 0, 90, "finish every frame with the remaining worker")
+    expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
+    frames, _ = read_stats(stats)
+    if sorted(f["frame"] for f in frames) != list(range(0, 6)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-5")
+    c.expect_frames_equal(out, "m", ref, range(0, 6), "png")
+
+
+def case_worker_joins_midrun(c):
+    scene = [*MEDIUM, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-9", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-9", "--out",
+                                                os.path.join(out, "m_####.png"), "--stats-json", stats])
+    c.start_worker("early", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
+    before = read_stats(stats)[0]
+    if len(before) >= 8:
+        fail("the job ran too fast: the second worker would come too late")
+    late = c.start_worker("late", addr, 1)
+    expect_exit(master, 0, 90, "finish every frame")
+    expect_exit(late, 0, 15, "exit 0 after the master's Goodbye")
+    labels = worker_labels(master)
+    if "late" not in labels:
+        fail(f"the master never logged the late worker joining: {labels}")
+    frames, _ = read_stats(stats)
+    early_keys = set().union(*(f["tiles_by_worker"].keys() for f in before))
+    later = [f for f in frames if labels["late"] in f["tiles_by_worker"]]
+    print(f"first frame(s) by {sorted(early_keys)}; the late worker {labels['late']} has tiles in frames "
+          f"{sorted(f['frame'] for f in later)}")
+    if labels["late"] in early_keys:
+        fail("the late worker shows in frames finished before it was started")
+    if not later:
+        fail(f"the late worker {labels['late']} got no tiles: {[f['tiles_by_worker'] for f in frames]}")
+    c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
+
+
+def case_master_restart(c):
+    scene = [*SMALL, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-3", "png")
+    addr = f"127.0.0.1:{free_port()}"
+    stay = ["--stay", "--retry-seconds", "30"]
+    workers = [c.start_worker(f"stay{i}", addr, 1, stay) for i in range(2)]
+    for w in workers:
+        expect_log(w, r"not reachable", "retrying while no master is up", watch=[w])
+
+    out1 = c.mkdir("run1")
+    master1, addr1, _ = c.start_master("master1", [*scene, "--frames", "0-1", "--out",
+                                                   os.path.join(out1, "m_####.png"), "--min-workers", "2"],
+                                       listen=addr)
+    expect_exit(master1, 0, 60, "render frames 0-1 with the waiting workers")
+    for w in workers:
+        expect_log(w, r"said goodbye: .*waiting for the next master", "staying after the Goodbye", watch=[w])
+    c.expect_frames_equal(out1, "m", ref, range(0, 2), "png")
+
+    out2 = c.mkdir("run2")
+    master2, addr2, _ = c.start_master("master2", [*scene, "--frames", "2-3", "--out",
+                                                   os.path.join(out2, "m_####.png"), "--min-workers", "2"],
+                                       listen=addr1)
+    if addr2 != addr1:
+        fail(f"the second master listens on {addr2}, not on {addr1}")
+    expect_exit(master2, 0, 60, "render frames 2-3 with the same worker processes")
+    labels = worker_labels(master2)
+    for w in workers:
+        if not w.alive():
+            fail(f"{w.name} exited ({describe_rc(w.poll())}) although it was started with --stay")
+        if w.name not in labels:
+            fail(f"{w.name} never joined the second master: {labels}")
+        expect_log(w, r"already here, transfer skipped", "that the scene transfer was skipped", timeout=1)
+    c.expect_frames_equal(out2, "m", ref, range(2, 4), "png")
+    for w in workers:
+        w.send(signal.SIGTERM)
+    for w in workers:
+        expect_exit(w, 0, 15, "exit 0 on SIGTERM")
+
+
+def read_until_closed(sock, timeout):
+    """Reads until the peer closes; returns (bytes, closed)."""
+    data = b""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        sock.settimeout(max(0.05, deadline - time.monotonic()))
+        try:
+            chunk = sock.recv(65536)
+        except socket.timeout:
+            continue
+        except (ConnectionResetError, BrokenPipeError):
+            return data, True
+        if not chunk:
+            return data, True
+        data += chunk
+    return data, False
+
+
+def read_challenge(sock, timeout=10):
+    data = b""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        msgs = parse_messages(data)
+        if msgs:
+            msg_type, payload = msgs[0]
+            if msg_type != MSG_CHALLENGE:
+                fail(f"the master's first message is type {msg_type}, not Challenge")
+            return parse_challenge(payload)
+        sock.settimeout(max(0.05, deadline - time.monotonic()))
+        try:
+            chunk = sock.recv(4096)
+        except socket.timeout:
+            continue
+        if not chunk:
+            fail("the master closed before sending its Challenge")
+        data += chunk
+    fail(f"no Challenge from the master within {timeout} s")
+
+
+def case_bad_peers(c):
+    token = c.path("token")
+    with open(token, "w", encoding="utf-8") as f:
+        f.write("correct horse battery staple\n")
+    wrong_token = c.path("wrong-token")
+    with open(wrong_token, "w", encoding="utf-8") as f:
+        f.write("not the token\n")
+    scene = [*SMALL, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-15", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out",
+                                                os.path.join(out, "m_####.png"), "--stats-json", stats,
+                                                "--token-file", token])
+    good = c.start_worker("good", addr, 1, ["--token-file", token])
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
+    host, port = split_address(addr)
+
+    def peer():
+        s = socket.create_connection((host, port), timeout=10)
+        return s, "%s:%d" % s.getsockname()[:2]
+
+    def master_logs(address, text, what):
+        """The master's line naming the peer's address and holding `text`, in either order."""
+        return expect_log(master, rf"(?=.*{re.escape(address)}\b)(?=.*{text})", what, watch=[master])
+
+    # (a) a correct Hello, then the proof of a wrong token.
+    s, me = peer()
+    with s:
+        nonce, auth_required, build = read_challenge(s)
+        if auth_required != 1:
+            fail(f"the master with --token-file sent auth_required={auth_required}")
+        proof = hmac.new(b"wrong token", AUTH_CONTEXT + nonce, hashlib.sha256).digest()
+        s.sendall(message(MSG_HELLO, hello_payload("bad-auth", build)) + message(MSG_AUTH, proof))
+        data, closed = read_until_closed(s, 10)
+    if not closed:
+        fail("(a) the master kept the connection with a wrong proof open")
+    errors = [p for t, p in parse_messages(data) if t == MSG_ERROR]
+    if not errors or struct.unpack_from("<H", errors[0])[0] != ERROR_AUTH_FAILED:
+        fail(f"(a) expected Error{{AuthFailed}} before the close, got {parse_messages(data)}")
+    m = master_logs(me, "authentication failed", "(a) the failed authentication")
+    print(f"(a) {m.string}")
+
+    # (b) a header with protocol version 2.
+    s, me = peer()
+    with s:
+        s.sendall(message(MSG_HELLO, hello_payload("v2", b"x"), version=2))
+        data, closed = read_until_closed(s, 10)
+    if not closed:
+        fail("(b) the master kept a version-2 peer's connection open")
+    if not any(t == MSG_ERROR for t, _ in parse_messages(data)):
+        c.note("(b) the master closed without sending Error{Version} (protocol.md: 'sends Error ... if it can')")
+    m = master_logs(me, "protocol version 2", "(b) the protocol version mismatch")
+    print(f"(b) {m.string}")
+
+    # (c) not an rtc peer at all.
+    s, me = peer()
+    with s:
+        s.sendall(b"GET / HTTP/1.1\r\n\r\n")
+        data, closed = read_until_closed(s, 10)
+    if not closed:
+        fail("(c) the master kept a garbage peer's connection open")
+    if not any(t == MSG_ERROR for t, _ in parse_messages(data)):
+        c.note("(c) the master closed without sending Error{Protocol} (protocol.md: 'sends Error ... if it can')")
+    m = master_logs(me, "bad magic", "(c) the bad magic")
+    print(f"(c) {m.string}")
+
+    # (d) half a message: 30 payload bytes announced, 10 sent, then our side closes.
+    s, me = peer()
+    with s:
+        read_challenge(s)
+        payload = bytes(range(30))
+        s.sendall(HEADER.pack(MAGIC, VERSION, MSG_HELLO, 30, zlib.crc32(payload)) + payload[:10])
+        s.shutdown(socket.SHUT_WR)
+        _, closed = read_until_closed(s, 10)
+    if not closed:
+        fail("(d) the master did not close after half a message and our end of stream")
+    m = master_logs(me, "half a", "(d) the half message")
+    print(f"(d) {m.string}")
+
+    # (e) a real worker with the wrong token.
+    intruder = c.start_worker("intruder", addr, 1, ["--token-file", wrong_token, "--retry-seconds", "5"])
+    rc = intruder.wait(20, "give up after the master rejected its token")
+    if rc == 0 or rc is None or rc < 0:
+        fail(f"(e) a worker with the wrong token: {describe_rc(rc)}, expected a non-zero exit status")
+    expect_log(intruder, r"rejected this worker", "(e) that the master rejected it", timeout=1)
+
+    if not master.alive():
+        fail("the master finished before every bad peer was tried: make the job longer")
+    expect_exit(master, 0, 90, "finish every frame despite the bad peers")
+    expect_exit(good, 0, 15, "exit 0 after the master's Goodbye")
+    frames, _ = read_stats(stats)
+    good_label = worker_labels(master).get("good")
+    for f in frames:
+        if set(f["tiles_by_worker"]) != {good_label}:
+            fail(f"frame {f['frame']} has tiles from {f['tiles_by_worker']}, expected only {good_label}")
+    if sorted(f["frame"] for f in frames) != list(range(0, 16)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-15")
+    c.expect_frames_equal(out, "m", ref, range(0, 16), "png")
+
+
+def interrupted_run(c, tag, scene, twice):
+    """12 frames on 2 workers; SIGINT to the master after the first frame (and, with `twice`, a
+    second SIGINT as soon as it drains). Checks the exit, the Goodbyes and the output folder;
+    returns (frames written, master)."""
+    out = c.mkdir(tag)
+    stats = c.path(f"{tag}-stats.json")
+    master, addr, _ = c.start_master(f"{tag}-master", [*scene, "--frames", "0-11", "--out",
+                                                       os.path.join(out, "m_####.png"), "--stats-json", stats,
+                                                       "--min-workers", "2"])
+    workers = [c.start_worker(f"{tag}-w{i}", addr, 1) for i in range(2)]
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
+    master.send(signal.SIGINT)
+    drain = expect_log(master, r"SIGINT: taking no new frames; finishing (\d+) in flight", "that SIGINT drains",
+                       watch=[master])
+    if twice:
+        master.send(signal.SIGINT)
+    expect_exit(master, 0, 60, "exit 0 after SIGINT")
+    expect_log(master, r"shutting down: ", "its shutdown", timeout=1)
+    for w in workers:
+        expect_exit(w, 0, 15, "exit 0 after the master's Goodbye")
+        expect_log(w, r"said goodbye", "the master's Goodbye", timeout=1)
+
+    frames, summary = read_stats(stats)
+    files = sorted(os.listdir(out))
+    stray = [f for f in files if not re.fullmatch(r"m_\d{4}\.png", f)]
+    if stray:
+        fail(f"{tag}: stray files in the output folder (partial frames?): {stray}")
+    written = sorted(int(f[2:6]) for f in files)
+    in_stats = sorted(f["frame"] for f in frames)
+    log = master.log()
+    abandoned = sorted(int(m.group(1)) for m in re.finditer(r"frame (\d+) \[seq \d+\] abandoned", log))
+    after_signal = len(re.findall(r"\] frame \d+ \[seq \d+\]: ", log[log.index(drain.group(0)):]))
+    print(f"{tag}: {drain.group(0)}; frames written {written}, abandoned {abandoned}")
+    if not written:
+        fail(f"{tag}: no frame was written")
+    if len(written) >= 12:
+        fail(f"{tag}: every frame was written: SIGINT came too late to test anything")
+    if written != in_stats:
+        fail(f"{tag}: files {written} differ from the frames in the stats JSON {in_stats}")
+    if set(abandoned) & set(written):
+        fail(f"{tag}: frames {sorted(set(abandoned) & set(written))} were abandoned but have files")
+    if not twice and (abandoned or after_signal != int(drain.group(1))):
+        fail(f"{tag}: {drain.group(1)} frames were in flight at SIGINT, {after_signal} finished after it "
+             f"and {len(abandoned)} were abandoned: all should have finished")
+    if twice and not abandoned:
+        c.note(f"{tag}: the frames in flight finished before the second SIGINT; nothing was abandoned")
+    if summary is None or summary.get("frames") != len(written):
+        fail(f"{tag}: the summary ({summary}) does not count the {len(written)} frames written")
+    return written, out
+
+
+def case_sigint_finishes_cleanly(c):
+    scene = [*MEDIUM, "--tile", "16"]
+    drained, drained_out = interrupted_run(c, "once", scene, twice=False)
+    abandoned, abandoned_out = interrupted_run(c, "twice", scene, twice=True)
+    ref = c.reference("ref", scene, f"0-{max(drained + abandoned)}", "png")
+    c.expect_frames_equal(drained_out, "m", ref, drained, "png")
+    c.expect_frames_equal(abandoned_out, "m", ref, abandoned, "png")
+
+
+def case_worker_frozen(c):
+    # A worker that stops answering (SIGSTOP: its socket stays open) is dropped after
+    # --heartbeat-timeout; its tiles go to the other worker and every frame still comes out.
+    scene = [*MEDIUM, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-5", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-5", "--out",
+                                                os.path.join(out, "m_####.png"), "--stats-json", stats,
+                                                "--min-workers", "2", "--heartbeat-timeout", "1000"])
+    keeper = c.start_worker("keeper", addr, 1)
+    frozen = c.start_worker("frozen", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
+    frozen.send(signal.SIGSTOP)
+    try:
+        m = expect_log(master, r"worker w\d+ \(frozen at [^)]*\) left: .*; (\d+) tiles back in the queue",
+                       "that the silent worker was dropped", timeout=30, watch=[master])
+        print(f"master: {m.group(0)}")
+        if "heartbeat" not in m.group(0):
+            fail(f"the frozen worker was dropped for another reason: {m.group(0)}")
+        expect_exit(master, 0, 90, "finish every frame with the remaining worker")
+    finally:
+        frozen.send(signal.SIGCONT)
+    expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
+    frames, _ = read_stats(stats)
+    if sorted(f["frame"] for f in frames) != list(range(0, 6)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-5")
+    c.expect_frames_equal(out, "m", ref, range(0, 6), "png")
+    # Woken up, the frozen worker finds its connection closed and, with no master left, gives up or
+    # keeps retrying; either way it is killed at cleanup.
+
+
+def case_non_loopback_needs_token(c):
+    p = c.spawn("master-open", [c.args.master, *SMALL, "--listen", "0.0.0.0:0",
+                                "--ready-file", c.path("open.ready")])
+    rc = p.wait(30, "refuse a non-loopback address without a token")
+    if rc in (0, None) or rc < 0:
+        fail(f"rtc-master --listen 0.0.0.0:0 without a token: {describe_rc(rc)}, expected a non-zero exit status")
+    if "token" not in p.log().lower():
+        fail("rtc-master refused 0.0.0.0 without a word about the token")
+    if os.path.exists(c.path("open.ready")):
+        fail("rtc-master wrote its ready file although it refused to start")
+    print(f"without a token: {p.log().strip().splitlines()[-1]}")
+
+    token = c.path("token")
+    with open(token, "w", encoding="utf-8") as f:
+        f.write("s3cret\n")
+    master, addr, _ = c.start_master("master-token", [*SMALL, "--token-file", token], listen="0.0.0.0:0")
+    print(f"with a token: listening on {addr}")
+    master.send(signal.SIGTERM)
+    expect_exit(master, 0, 15, "exit 0 on SIGTERM")
+
+
+def case_worker_gives_up(c):
+    # A bound socket that never listens: connecting is refused, and no one else can take the port.
+    with socket.socket() as closed:
+        closed.bind(("127.0.0.1", 0))
+        port = closed.getsockname()[1]
+        w = c.spawn("worker", [c.args.worker, "--connect", f"127.0.0.1:{port}", "--retry-seconds", "2",
+                               "--threads", "1"])
+        rc = w.wait(15, "give up after --retry-seconds 2")
+        elapsed = time.monotonic() - w.started
+    if rc != 1:
+        fail(f"rtc-worker: {describe_rc(rc)}, expected exit status 1")
+    if elapsed > 10:
+        fail(f"rtc-worker took {elapsed:.1f} s to give up (--retry-seconds 2)")
+    if elapsed < 1.5:
+        fail(f"rtc-worker gave up after {elapsed:.1f} s, before its --retry-seconds 2")
+    expect_log(w, r"unreachable", "that the master is unreachable", timeout=1)
+    print(f"gave up after {elapsed:.1f} s")
+
+
+CASES = {
+    "workers_1": case_workers_1,
+    "workers_2": case_workers_2,
+    "workers_4": case_workers_4,
+    "exr_half_and_float": case_exr_half_and_float,
+    "wire_formats_compression": case_wire_formats_compression,
+    "worker_killed_midframe": case_worker_killed_midframe,
+    "worker_joins_midrun": case_worker_joins_midrun,
+    "master_restart": case_master_restart,
+    "bad_peers": case_bad_peers,
+    "sigint_finishes_cleanly": case_sigint_finishes_cleanly,
+    "worker_frozen": case_worker_frozen,
+    "non_loopback_needs_token": case_non_loopback_needs_token,
+    "worker_gives_up": case_worker_gives_up,
+}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("case", choices=sorted(CASES))
+    parser.add_argument("--master", required=True)
+    parser.add_argument("--worker", required=True)
+    parser.add_argument("--render", required=True)
+    parser.add_argument("--oiiotool", default="oiiotool")
+    parser.add_argument("--keep", action="store_true", help="keep the temporary folder")
+    args = parser.parse_args()
+
+    # ctest's timeout sends SIGTERM first: turn it into an exception so the cleanup runs.
+    def on_term(signum, _frame):
+        raise Failure(f"interrupted by signal {signum}")
+
+    signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGINT, on_term)
+
+    case = Case(args)
+    start = time.monotonic()
+    status = 1
+    try:
+        CASES[args.case](case)
+        status = 0
+        print(f"PASS [{args.case}] in {time.monotonic() - start:.1f} s")
+    except Failure as e:
+        print(f"FAIL [{args.case}] after {time.monotonic() - start:.1f} s: {e}")
+        case.dump_logs()
+    except Exception:
+        print(f"ERROR [{args.case}]:")
+        traceback.print_exc(file=sys.stdout)
+        case.dump_logs()
+    finally:
+        case.cleanup()
+    sys.stdout.flush()
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

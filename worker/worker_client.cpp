@@ -1,0 +1,561 @@
+// rtc-worker's client (see worker_client.h). One io_context thread talks to the master; render
+// threads take tiles from a local queue, trace, encode and post the finished bytes back to it.
+// A session number guards against results of a dead connection reaching the next one.
+#include "worker/worker_client.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <csignal>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include <asio.hpp>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include "common/base/error.h"
+#include "common/base/timer.h"
+#include "common/base/version.h"
+#include "common/image/pixel_format.h"
+#include "common/render/renderer.h"
+#include "common/scene/serialize.h"
+#include "protocol/auth.h"
+#include "protocol/message.h"
+#include "protocol/net/connection.h"
+
+namespace rtc {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace proto = protocol;
+
+/// The scene a worker holds, with its renderer and the frames it has prepared. Shared by the
+/// render threads; prepare() is serialized by a mutex (Renderer::prepare is not thread-safe).
+class SceneSlot {
+ public:
+  SceneSlot(proto::Digest hash, Scene scene, const RenderOptions& options)
+      : hash_(hash), renderer_(std::move(scene), options) {}
+
+  [[nodiscard]] const proto::Digest& hash() const { return hash_; }
+  [[nodiscard]] const Renderer& renderer() const { return renderer_; }
+
+  std::shared_ptr<const FrameState> frame(int frame) {
+    std::lock_guard lock(mutex_);
+    for (auto& [f, state] : prepared_) {
+      if (f == frame) return state;
+    }
+    std::shared_ptr<const FrameState> state = renderer_.prepare(frame);
+    // A few frames stay prepared (several are in flight); the oldest goes first.
+    if (prepared_.size() >= 4) prepared_.pop_front();
+    prepared_.emplace_back(frame, state);
+    return state;
+  }
+
+ private:
+  proto::Digest hash_;
+  Renderer renderer_;
+  std::mutex mutex_;
+  std::deque<std::pair<int, std::shared_ptr<const FrameState>>> prepared_;
+};
+
+struct TileJob {
+  std::uint64_t session = 0;
+  std::shared_ptr<SceneSlot> scene;
+  proto::TileAssign tile;
+  proto::FrameSettings settings;
+};
+
+/// Render threads: each takes one tile at a time, traces it, encodes the pixels and hands the
+/// encoded TileResult to `deliver` (which posts it to the network thread).
+class RenderPool {
+ public:
+  using Deliver = std::function<void(std::uint64_t session, std::vector<std::uint8_t> message)>;
+  using Fail = std::function<void(std::uint64_t session, std::string error)>;
+
+  RenderPool(int threads, Deliver deliver, Fail fail) : deliver_(std::move(deliver)), fail_(std::move(fail)) {
+    for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
+  }
+  ~RenderPool() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (std::thread& t : threads_) t.join();
+  }
+  RenderPool(const RenderPool&) = delete;
+  RenderPool& operator=(const RenderPool&) = delete;
+
+  void push(TileJob job) {
+    {
+      std::lock_guard lock(mutex_);
+      jobs_.push_back(std::move(job));
+    }
+    wake_.notify_one();
+  }
+  /// Drops queued jobs of older sessions (a lost connection's tiles went back to the master).
+  void set_session(std::uint64_t session) {
+    std::lock_guard lock(mutex_);
+    session_ = session;
+    jobs_.erase(std::remove_if(jobs_.begin(), jobs_.end(), [&](const TileJob& j) { return j.session != session; }),
+                jobs_.end());
+  }
+
+ private:
+  void loop() {
+    Image tile;
+    std::vector<std::uint8_t> pixels;
+    for (;;) {
+      TileJob job;
+      {
+        std::unique_lock lock(mutex_);
+        wake_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
+        if (stop_) return;
+        job = std::move(jobs_.front());
+        jobs_.pop_front();
+        if (job.session != session_) continue;
+      }
+      try {
+        const std::shared_ptr<const FrameState> state = job.scene->frame(job.tile.frame);
+        Timer timer;
+        TileRayCounts counts;
+        job.scene->renderer().render_tile(*state, static_cast<int>(job.tile.x), static_cast<int>(job.tile.y),
+                                          static_cast<int>(job.tile.width), static_cast<int>(job.tile.height), tile,
+                                          &counts);
+        const double render_ms = timer.elapsed_ms();
+        proto::TileResult r;
+        r.sequence = job.tile.sequence;
+        r.frame = job.tile.frame;
+        r.tile = job.tile.tile;
+        r.x = job.tile.x;
+        r.y = job.tile.y;
+        r.width = job.tile.width;
+        r.height = job.tile.height;
+        r.wire_format = job.settings.wire_format;
+        r.compression = job.settings.compression;
+        r.channels = job.settings.channels;
+        pixels.clear();
+        r.raw_size = static_cast<std::uint32_t>(
+            encode_tile_pixels(tile, static_cast<WireFormat>(job.settings.wire_format),
+                               static_cast<Compression>(job.settings.compression), job.settings.channels, pixels));
+        r.pixels = pixels;
+        r.render_us = static_cast<std::uint32_t>(std::min(render_ms * 1000.0, 4e9));
+        r.primary_rays = counts.primary;
+        r.shadow_rays = counts.shadow;
+        r.reflection_rays = counts.reflection;
+        deliver_(job.session, proto::encode(r));
+      } catch (const std::exception& e) {
+        fail_(job.session, std::string("rendering tile ") + std::to_string(job.tile.tile) + " of frame " +
+                               std::to_string(job.tile.frame) + ": " + e.what());
+      }
+    }
+  }
+
+  Deliver deliver_;
+  Fail fail_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<TileJob> jobs_;
+  std::uint64_t session_ = 0;
+  bool stop_ = false;
+  std::vector<std::thread> threads_;
+};
+
+std::string host_name() {
+  char buf[256] = {};
+  if (gethostname(buf, sizeof buf - 1) != 0) return "worker";
+  return buf;
+}
+
+class WorkerClient {
+ public:
+  explicit WorkerClient(const WorkerOptions& options)
+      : options_(options),
+        threads_(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))),
+        target_(net::parse_host_port(options.connect, "--connect")),
+        signals_(io_, SIGINT, SIGTERM),
+        retry_timer_(io_),
+        watchdog_(io_),
+        pool_(threads_,
+              [this](std::uint64_t session, std::vector<std::uint8_t> message) {
+                asio::post(io_, [this, session, m = std::move(message)]() mutable {
+                  if (session == session_ && conn_) conn_->send_encoded(std::move(m));
+                });
+              },
+              [this](std::uint64_t session, std::string error) {
+                asio::post(io_, [this, session, error] {
+                  if (session == session_ && conn_) fail_session(proto::ErrorCode::Internal, error);
+                });
+              }) {
+    if (options_.name.empty()) options_.name = host_name();
+    options_.name = options_.name.substr(0, proto::kMaxName);
+    render_options_.isa = options_.isa;
+    isa_ = options_.isa.value_or(best_isa());
+  }
+
+  int run() {
+    spdlog::info("rtc-worker {}: {} render threads, {} kernels; master {}", build_id(), threads_, isa_name(isa_),
+                 options_.connect);
+    lost_since_ = Clock::now();
+    signals_.async_wait([this](const asio::error_code& ec, int signal) {
+      if (ec) return;
+      spdlog::info("{}: saying goodbye to the master and exiting", signal == SIGINT ? "SIGINT" : "SIGTERM");
+      exit_code_ = 0;
+      finish(true);
+    });
+    connect();
+    io_.run();
+    return exit_code_;
+  }
+
+ private:
+  // ---- connecting --------------------------------------------------------------------------
+
+  void connect() {
+    if (finished_) return;
+    auto socket = std::make_shared<asio::ip::tcp::socket>(io_);
+    auto resolver = std::make_shared<asio::ip::tcp::resolver>(io_);
+    auto timeout = std::make_shared<asio::steady_timer>(io_, std::chrono::seconds(5));
+    timeout->async_wait([socket, resolver](const asio::error_code& ec) {
+      if (ec) return;
+      asio::error_code ignored;
+      resolver->cancel();
+      socket->close(ignored);
+    });
+    resolver->async_resolve(target_.host, std::to_string(target_.port),
+                            [this, socket, resolver, timeout](const asio::error_code& ec,
+                                                              const asio::ip::tcp::resolver::results_type& results) {
+                              if (ec) {
+                                timeout->cancel();
+                                return retry("cannot resolve " + target_.host + ": " + ec.message());
+                              }
+                              asio::async_connect(*socket, results,
+                                                  [this, socket, timeout](const asio::error_code& e,
+                                                                          const asio::ip::tcp::endpoint&) {
+                                                    timeout->cancel();
+                                                    if (e) return retry(e == asio::error::operation_aborted
+                                                                            ? std::string("connect timed out")
+                                                                            : e.message());
+                                                    on_connected(std::move(*socket));
+                                                  });
+                            });
+  }
+
+  void retry(const std::string& why) {
+    if (finished_) return;
+    const double down_s = std::chrono::duration<double>(Clock::now() - lost_since_).count();
+    if (options_.retry_seconds > 0 && down_s >= options_.retry_seconds) {
+      spdlog::error("master at {} unreachable for {:.0f} s (last: {}); giving up (--retry-seconds {})", options_.connect,
+                    down_s, why, options_.retry_seconds);
+      exit_code_ = 1;
+      return finish(false);
+    }
+    if (!retry_logged_) {
+      spdlog::info("master at {} not reachable ({}); retrying with back-off{}", options_.connect, why,
+                   options_.retry_seconds > 0 ? " for up to " + std::to_string(static_cast<int>(options_.retry_seconds)) + " s" : "");
+      retry_logged_ = true;
+    } else {
+      spdlog::debug("master at {} not reachable ({}); next try in {} ms", options_.connect, why, backoff_ms_);
+    }
+    retry_timer_.expires_after(std::chrono::milliseconds(backoff_ms_));
+    retry_timer_.async_wait([this](const asio::error_code& ec) {
+      if (!ec) connect();
+    });
+    backoff_ms_ = std::min(backoff_ms_ * 2, 5000);
+  }
+
+  void on_connected(asio::ip::tcp::socket socket) {
+    ++session_;
+    pool_.set_session(session_);
+    const std::string peer = net::peer_name(socket);
+    conn_ = std::make_shared<net::Connection>(std::move(socket), "master " + peer);
+    welcomed_ = false;
+    settings_.clear();
+    scene_buffer_.clear();
+    receiving_scene_ = false;
+    last_heard_ = Clock::now();
+    const std::uint64_t session = session_;
+    conn_->start([this, session](proto::Message&& m, std::size_t) {
+                   if (session != session_) return;
+                   last_heard_ = Clock::now();
+                   current_type_ = proto::type_name(static_cast<std::uint16_t>(proto::type_of(m)));
+                   std::visit([&](auto&& msg) { handle(std::move(msg)); }, std::move(m));
+                 },
+                 [this, session](const std::string& reason) { on_close(session, reason); });
+    spdlog::debug("connected to {}", peer);
+    arm_watchdog();
+  }
+
+  void on_close(std::uint64_t session, const std::string& reason) {
+    if (session != session_) return;
+    conn_.reset();
+    ++session_;
+    pool_.set_session(session_);
+    watchdog_.cancel();
+    if (finished_) return;
+    if (goodbye_) {
+      if (!options_.stay) return finish(false);
+      goodbye_ = false;
+    }
+    if (auth_rejected_) {
+      exit_code_ = 1;
+      return finish(false);
+    }
+    if (welcomed_) {
+      spdlog::warn("lost the master: {}; reconnecting", reason);
+      lost_since_ = Clock::now();
+      backoff_ms_ = 200;
+      retry_logged_ = false;
+    }
+    retry(reason);
+  }
+
+  // The master's heartbeats stop when it is gone without a FIN (a cable pulled, a host down).
+  void arm_watchdog() {
+    watchdog_.expires_after(std::chrono::seconds(1));
+    watchdog_.async_wait([this](const asio::error_code& ec) {
+      if (ec || !conn_) return;
+      const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
+      if (Clock::now() - last_heard_ > limit) {
+        conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
+        return;
+      }
+      arm_watchdog();
+    });
+  }
+
+  void finish(bool say_goodbye) {
+    if (finished_) return;
+    finished_ = true;
+    asio::error_code ec;
+    signals_.cancel(ec);
+    retry_timer_.cancel();
+    watchdog_.cancel();
+    if (conn_) {
+      if (say_goodbye) {
+        proto::Goodbye bye;
+        bye.reason = "worker stopped by a signal";
+        conn_->send(bye);
+        conn_->close_after_flush("goodbye sent");
+      } else {
+        conn_->close("worker exiting");
+      }
+    }
+  }
+
+  void fail_session(proto::ErrorCode code, const std::string& why) {
+    spdlog::error("{}: {}; closing and reconnecting", conn_ ? conn_->peer() : std::string("master"), why);
+    if (!conn_) return;
+    proto::ErrorMessage error;
+    error.code = code;
+    error.text = why.substr(0, proto::kMaxText);
+    conn_->send(error);
+    conn_->close_after_flush(why);
+  }
+
+  // ---- messages from the master ------------------------------------------------------------
+
+  void handle(proto::Challenge&& m) {
+    if (hello_sent_this_session_ == session_) return unexpected();
+    hello_sent_this_session_ = session_;
+    if (m.auth_required && options_.token.empty()) {
+      spdlog::warn("{} requires a token and this worker has none (--token-file): authentication will fail", conn_->peer());
+    }
+    proto::Hello hello;
+    hello.cores = std::max(1u, std::thread::hardware_concurrency());
+    hello.threads = static_cast<std::uint32_t>(threads_);
+    hello.isa = std::string(isa_name(isa_));
+    hello.build_id = build_id().substr(0, proto::kMaxName);
+    hello.name = options_.name;
+    conn_->send(hello);
+    proto::Auth auth;
+    auth.proof = proto::auth_proof(options_.token, m.nonce);
+    conn_->send(auth);
+  }
+
+  void handle(proto::Welcome&& m) {
+    if (welcomed_) return unexpected();
+    welcomed_ = true;
+    heartbeat_ms_ = m.heartbeat_ms;
+    backoff_ms_ = 200;
+    retry_logged_ = false;
+    spdlog::info("connected to {} as worker w{} (up to {} tiles at once)", conn_->peer(), m.worker_id, m.max_outstanding);
+  }
+
+  void handle(proto::SceneOffer&& m) {
+    if (!welcomed_) return unexpected();
+    proto::SceneRequest request;
+    request.hash = m.hash;
+    if (scene_ && scene_->hash() == m.hash) {
+      request.have = true;
+      conn_->send(request);
+      spdlog::info("scene {} ({}): already here, transfer skipped", m.name, proto::to_hex(m.hash).substr(0, 16));
+      proto::SceneReady ready;
+      ready.hash = m.hash;
+      conn_->send(ready);
+      return;
+    }
+    // A hostile size must not make us allocate: chunks are appended as they come.
+    constexpr std::uint64_t kMaxSceneBytes = 16ull << 30;
+    if (m.size == 0 || m.size > kMaxSceneBytes) {
+      return fail_session(proto::ErrorCode::SceneInvalid, "scene offer of " + std::to_string(m.size) + " bytes is out of range");
+    }
+    scene_offer_ = m;
+    scene_buffer_.clear();
+    receiving_scene_ = true;
+    scene_timer_.reset();
+    conn_->send(request);
+    spdlog::info("receiving scene {} ({:.1f} MB)", m.name, m.size / 1e6);
+  }
+
+  void handle(proto::SceneChunk&& m) {
+    if (!receiving_scene_ || m.hash != scene_offer_.hash) return unexpected();
+    if (m.offset != scene_buffer_.size() || scene_buffer_.size() + m.bytes.size() > scene_offer_.size) {
+      return fail_session(proto::ErrorCode::SceneInvalid,
+                          "scene chunk at offset " + std::to_string(m.offset) + " does not continue the " +
+                              std::to_string(scene_buffer_.size()) + " bytes received of " +
+                              std::to_string(scene_offer_.size));
+    }
+    scene_buffer_.insert(scene_buffer_.end(), m.bytes.begin(), m.bytes.end());
+    if (scene_buffer_.size() < scene_offer_.size) return;
+    receiving_scene_ = false;
+    if (proto::sha256(scene_buffer_) != scene_offer_.hash) {
+      return fail_session(proto::ErrorCode::SceneInvalid, "scene bytes do not match their SHA-256");
+    }
+    try {
+      Scene scene = deserialize_scene(scene_buffer_, "scene from " + conn_->peer());
+      scene_.reset();  // free the old scene's memory before building the new one
+      scene_ = std::make_shared<SceneSlot>(scene_offer_.hash, std::move(scene), render_options_);
+    } catch (const std::exception& e) {
+      return fail_session(proto::ErrorCode::SceneInvalid, e.what());
+    }
+    std::vector<std::uint8_t>().swap(scene_buffer_);
+    proto::SceneReady ready;
+    ready.hash = scene_offer_.hash;
+    ready.load_ms = static_cast<std::uint32_t>(scene_timer_.elapsed_ms());
+    conn_->send(ready);
+    spdlog::info("scene {} received and decoded in {:.0f} ms: {} triangles, {}x{}", scene_offer_.name,
+                 scene_timer_.elapsed_ms(), scene_->renderer().scene().triangle_count(), scene_->renderer().scene().width,
+                 scene_->renderer().scene().height);
+  }
+
+  void handle(proto::FrameSettings&& m) {
+    if (!scene_) return unexpected();
+    if (!wire_format_from_byte(m.wire_format) || !compression_from_byte(m.compression) ||
+        (m.channels & ~(kChannelDepth | kChannelNormal)) != 0 ||
+        (m.channels != 0 && m.wire_format == static_cast<std::uint8_t>(WireFormat::Rgba8))) {
+      return fail_session(proto::ErrorCode::Protocol, "FrameSettings with an unknown pixel format " +
+                                                          std::to_string(m.wire_format) + "/" +
+                                                          std::to_string(m.compression) + "/" + std::to_string(m.channels));
+    }
+    if (settings_.size() >= 256) return fail_session(proto::ErrorCode::Protocol, "more than 256 frames in flight");
+    settings_[m.sequence] = m;
+  }
+
+  void handle(proto::TileAssign&& m) {
+    const auto it = settings_.find(m.sequence);
+    if (!scene_ || it == settings_.end() || it->second.frame != m.frame) {
+      return fail_session(proto::ErrorCode::Protocol,
+                          "TileAssign for frame sequence " + std::to_string(m.sequence) + " without its FrameSettings");
+    }
+    const Scene& scene = scene_->renderer().scene();
+    const auto w = static_cast<std::uint64_t>(scene.width), h = static_cast<std::uint64_t>(scene.height);
+    if (m.width == 0 || m.height == 0 || m.width > 4096 || m.height > 4096 || std::uint64_t{m.x} + m.width > w ||
+        std::uint64_t{m.y} + m.height > h) {
+      return fail_session(proto::ErrorCode::Protocol, "TileAssign rectangle " + std::to_string(m.x) + "," +
+                                                          std::to_string(m.y) + " " + std::to_string(m.width) + "x" +
+                                                          std::to_string(m.height) + " outside the " +
+                                                          std::to_string(w) + "x" + std::to_string(h) + " frame");
+    }
+    pool_.push(TileJob{session_, scene_, m, it->second});
+  }
+
+  void handle(proto::FrameEnd&& m) { settings_.erase(m.sequence); }
+
+  void handle(proto::Heartbeat&& m) {
+    proto::HeartbeatAck ack;
+    ack.seq = m.seq;
+    ack.sent_us = m.sent_us;
+    conn_->send(ack);
+  }
+
+  void handle(proto::HeartbeatAck&&) {}
+
+  void handle(proto::ProbeRequest&& m) {
+    proto::ProbeData data;
+    data.bytes.assign(m.bytes, 0);
+    conn_->send(data);
+  }
+
+  void handle(proto::ErrorMessage&& m) {
+    if (m.code == proto::ErrorCode::AuthFailed) {
+      spdlog::error("{} rejected this worker: {} (check --token-file)", conn_->peer(), m.text);
+      auth_rejected_ = true;
+    } else {
+      spdlog::error("{} reports an error: {}", conn_->peer(), m.text);
+    }
+    conn_->close("the master reported an error: " + m.text);
+  }
+
+  void handle(proto::Goodbye&& m) {
+    spdlog::info("{} said goodbye: {}{}", conn_->peer(), m.reason, options_.stay ? "; waiting for the next master" : "; exiting");
+    goodbye_ = true;
+    lost_since_ = Clock::now();
+    conn_->close("goodbye");
+  }
+
+  template <class M>
+  void handle(M&&) {
+    unexpected();
+  }
+
+  void unexpected() { fail_session(proto::ErrorCode::Protocol, "unexpected " + current_type_ + " message"); }
+
+  WorkerOptions options_;
+  int threads_;
+  net::HostPort target_;
+  Isa isa_{};
+  RenderOptions render_options_;
+  asio::io_context io_;
+  asio::signal_set signals_;
+  asio::steady_timer retry_timer_, watchdog_;
+  std::shared_ptr<net::Connection> conn_;
+  std::uint64_t session_ = 0;
+  std::uint64_t hello_sent_this_session_ = 0;
+  bool welcomed_ = false, goodbye_ = false, auth_rejected_ = false, finished_ = false, retry_logged_ = false;
+  int exit_code_ = 0;
+  int backoff_ms_ = 200;
+  std::uint32_t heartbeat_ms_ = 1000;
+  Clock::time_point lost_since_, last_heard_;
+  std::string current_type_;
+  std::shared_ptr<SceneSlot> scene_;
+  proto::SceneOffer scene_offer_;
+  std::vector<std::uint8_t> scene_buffer_;
+  bool receiving_scene_ = false;
+  Timer scene_timer_;
+  std::map<std::uint32_t, proto::FrameSettings> settings_;
+  RenderPool pool_;  // last: its threads stop before the members they use go away
+};
+
+}  // namespace
+
+int run_worker(const WorkerOptions& options) {
+  std::unique_ptr<tbb::global_control> limit;
+  if (options.threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<std::size_t>(options.threads));
+  }
+  WorkerClient client(options);
+  return client.run();
+}
+
+}  // namespace rtc

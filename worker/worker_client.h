@@ -1,0 +1,28 @@
+// rtc-worker's client: connects to a master (retrying with back-off), authenticates, receives
+// the scene (or reuses it by hash), renders the tiles it is given on all its threads and
+// streams the pixels back.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "common/base/isa.h"
+
+namespace rtc {
+
+struct WorkerOptions {
+  std::string connect = "127.0.0.1:7878";  ///< the master's HOST:PORT
+  std::string token;                       ///< empty: none (the master must not require one)
+  int threads = 0;                         ///< render threads; 0: all cores
+  std::optional<Isa> isa;                  ///< empty: the best this CPU supports
+  std::string name;                        ///< shown in the master's log; default: host name
+  double retry_seconds = 60;  ///< give up after the master was unreachable this long (0: never)
+  bool stay = false;          ///< on the master's Goodbye, wait for the next master instead of exiting
+};
+
+/// Runs until the master says goodbye (0), SIGINT/SIGTERM (0), the master stays unreachable for
+/// retry_seconds or rejects the token (1, with a clear message in the log). Never throws for
+/// anything a master sends.
+int run_worker(const WorkerOptions& options);
+
+}  // namespace rtc

@@ -1,0 +1,54 @@
+// rtc-worker: connects to an rtc-master, receives its scene and renders the tiles it is given
+// on all cores, streaming the pixels back; reconnects with back-off when the master goes away.
+#include <cstdio>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "common/base/error.h"
+#include "common/base/isa.h"
+#include "common/base/log.h"
+#include "protocol/auth.h"
+#include "worker/worker_client.h"
+
+namespace {
+
+int run(int argc, char** argv) {
+  CLI::App app{"rtc-worker: render tiles for an rtc-master"};
+  rtc::WorkerOptions o;
+  std::string token_file, isa_text, log_level = "info";
+  app.add_option("--connect", o.connect, "the master's HOST:PORT")->capture_default_str();
+  app.add_option("--threads", o.threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--token-file", token_file, "file holding the shared token the master requires");
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
+  app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");
+  app.add_option("--retry-seconds", o.retry_seconds,
+                 "give up when the master has been unreachable this long (0: retry for ever)")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
+  app.add_flag("--stay", o.stay, "when the master says goodbye, wait for the next one instead of exiting");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  rtc::init_logging(log_level);
+  if (!isa_text.empty()) {
+    try {
+      o.isa = rtc::parse_isa(isa_text);
+      rtc::require_cpu_support(*o.isa);
+    } catch (const rtc::Error& e) {
+      throw rtc::Error(std::string("--isa: ") + e.what());
+    }
+  }
+  if (!token_file.empty()) o.token = rtc::protocol::read_token_file(token_file);
+  return rtc::run_worker(o);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rtc-worker: error: %s\n", e.what());
+    return 1;
+  }
+}
