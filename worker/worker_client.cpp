@@ -250,7 +250,7 @@ class WorkerClient {
                             });
   }
 
-  void retry(const std::string& why) {
+  void retry(const std::string& why, bool connected = false) {
     if (finished_) return;
     const double down_s = std::chrono::duration<double>(Clock::now() - lost_since_).count();
     if (options_.retry_seconds > 0 && down_s >= options_.retry_seconds) {
@@ -259,7 +259,7 @@ class WorkerClient {
       exit_code_ = 1;
       return finish(false);
     }
-    if (!retry_logged_) {
+    if (!retry_logged_ && !connected) {
       spdlog::info("master at {} not reachable ({}); retrying with back-off{}", options_.connect, why,
                    options_.retry_seconds > 0 ? " for up to " + std::to_string(static_cast<int>(options_.retry_seconds)) + " s" : "");
       retry_logged_ = true;
@@ -315,8 +315,11 @@ class WorkerClient {
       lost_since_ = Clock::now();
       backoff_ms_ = 200;
       retry_logged_ = false;
+    } else {
+      // Reached, but the handshake failed (a bad message, a non-rtc server): say why every time.
+      spdlog::warn("connection to {} failed before the master welcomed this worker: {}", options_.connect, reason);
     }
-    retry(reason);
+    retry(reason, /*connected=*/true);
   }
 
   // The master's heartbeats stop when it is gone without a FIN (a cable pulled, a host down).

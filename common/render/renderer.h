@@ -39,8 +39,9 @@ class Renderer {
   [[nodiscard]] Isa isa() const { return isa_; }
 
   /// Evaluates the animation at `frame`, flattens the meshes to world space and builds the
-  /// kd-tree; when no mesh moved since the last call, geometry and tree are reused. Not
-  /// thread-safe (call from one thread, then render tiles from many).
+  /// kd-tree; when no mesh moved since the last call, geometry and tree are reused. Calls to
+  /// prepare() must not overlap each other, but may overlap render_tile() on states returned
+  /// earlier (a worker prepares the next frame while its threads trace the current one).
   std::shared_ptr<const FrameState> prepare(int frame);
 
   /// Renders pixels [x0, x0 + w) x [y0, y0 + h) of the prepared frame into `out`, which is

@@ -61,6 +61,7 @@ void Connection::read_header() {
       finish(ec == asio::error::eof ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
       return;
     }
+    header_arrived_ = std::chrono::steady_clock::now();
     const protocol::HeaderResult header = protocol::parse_header(header_buf_);
     if (header.status != protocol::DecodeStatus::Complete) {
       std::uint32_t magic = 0;

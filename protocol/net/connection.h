@@ -69,6 +69,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   [[nodiscard]] std::size_t queued_bytes() const { return queued_bytes_; }
   [[nodiscard]] std::uint64_t bytes_received() const { return bytes_received_; }
   [[nodiscard]] std::uint64_t bytes_sent() const { return bytes_sent_; }
+  /// When the header of the message being handled arrived (link measurements time the payload
+  /// from there, leaving out the request's round trip and the sender's preparation).
+  [[nodiscard]] std::chrono::steady_clock::time_point header_arrived() const { return header_arrived_; }
 
  private:
   /// Sends Error{code, text} to the peer, then closes with `reason`.
@@ -92,6 +95,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool closing_after_flush_ = false;
   std::string pending_close_reason_;
   std::unique_ptr<asio::steady_timer> flush_timer_;
+  std::chrono::steady_clock::time_point header_arrived_{};
   std::uint64_t bytes_received_ = 0;
   std::uint64_t bytes_sent_ = 0;
 };

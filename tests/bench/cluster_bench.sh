@@ -7,7 +7,8 @@
 #            wire format and compression, the logged link bound and the achieved frame rate.
 # Usage (root for `link`):
 #   tests/bench/cluster_bench.sh scaling [SECONDS] [SCENE...]
-#   tests/bench/cluster_bench.sh link [SECONDS] [SCENE...]      (RATE=100mbit WORKERS=2 SIZES="512 1024")
+#   tests/bench/cluster_bench.sh link [SECONDS] [SCENE...]      (RATE=100mbit WORKERS=2 SIZES="512 1024"
+#                                                                MEASURED_ONLY=1)
 # Writes JSON lines to tests/bench/results/cluster_<mode>.jsonl and a table to cluster_<mode>.md.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
@@ -132,6 +133,8 @@ PY
     head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' > "$work/token"
     token_args=(--token-file "$work/token")
     out="$results/cluster_link.jsonl"
+    # MEASURED_ONLY=1: only the runs where the master measures the link itself.
+    [ "${MEASURED_ONLY:-0}" = 1 ] && { out="$results/cluster_link_measured.jsonl"; sizes=""; }
     : > "$out"
     mbps="$(python3 -c "import re,sys; r=sys.argv[1].lower(); m=re.match(r'([0-9.]+)(k|m|g)bit',r); print(float(m.group(1))*{'k':1e-3,'m':1,'g':1e3}[m.group(2)])" "$rate")"
     for scene in "${scenes[@]}"; do

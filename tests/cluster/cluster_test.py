@@ -823,6 +823,66 @@ def case_worker_gives_up(c):
     print(f"gave up after {elapsed:.1f} s")
 
 
+def case_bad_master(c):
+    """A fake master on a Python socket: garbage, a tile before its frame settings, a bad CRC.
+    Each time the worker logs the reason, answers with an Error, closes and reconnects; it never
+    crashes. Finally a clean Challenge + Goodbye: the worker exits 0."""
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(4)
+        listener.settimeout(15)
+        port = listener.getsockname()[1]
+        w = c.spawn("worker", [c.args.worker, "--connect", f"127.0.0.1:{port}", "--retry-seconds", "20",
+                               "--threads", "1", "--name", "victim"])
+
+        def accept(what):
+            try:
+                conn, _ = listener.accept()
+            except socket.timeout:
+                fail(f"the worker did not connect {what} within 15 s")
+            return conn
+
+        def challenge():
+            return message(MSG_CHALLENGE, os.urandom(32) + b"\x00" + wire_str(b"fake master"))
+
+        def expect_error_and_close(conn, what):
+            data, closed = read_until_closed(conn, 10)
+            if not closed:
+                fail(f"the worker kept the connection open after {what}")
+            types = [t for t, _ in parse_messages(data)]
+            if MSG_ERROR not in types:
+                fail(f"the worker sent no Error message after {what} (got types {types})")
+            if w.poll() is not None:
+                fail(f"the worker died after {what}: {describe_rc(w.poll())}")
+
+        # 1. Garbage instead of a Challenge.
+        with accept("the first time") as conn:
+            conn.sendall(b"SSH-2.0-OpenSSH_9.2 garbage garbage\r\n")
+            expect_error_and_close(conn, "garbage bytes")
+        expect_log(w, r"bad magic", "the garbage to be reported")
+        # 2. A TileAssign for a frame it was never told about.
+        with accept("again after the garbage") as conn:
+            conn.sendall(challenge())
+            welcome = message(4, struct.pack("<III", 1, 1000, 4))
+            tile = message(10, struct.pack("<IiIIIII", 7, 0, 0, 0, 0, 8, 8))
+            conn.sendall(welcome + tile)
+            expect_error_and_close(conn, "a TileAssign without FrameSettings")
+        expect_log(w, r"without its FrameSettings", "the stray TileAssign to be reported")
+        # 3. A valid header whose CRC does not match its payload.
+        with accept("again after the stray tile") as conn:
+            payload = struct.pack("<QQ", 1, 2)
+            conn.sendall(HEADER.pack(MAGIC, VERSION, 12, len(payload), zlib.crc32(payload) ^ 1) + payload)
+            expect_error_and_close(conn, "a CRC mismatch")
+        expect_log(w, r"(?i)crc", "the CRC mismatch to be reported")
+        # 4. A master that says goodbye: the worker exits 0.
+        with accept("again after the CRC mismatch") as conn:
+            conn.sendall(challenge() + message(15, wire_str(b"fake master done")))
+            read_until_closed(conn, 10)
+        rc = w.wait(15, "exit after the goodbye")
+        if rc != 0:
+            fail(f"rtc-worker: {describe_rc(rc)} after the master's goodbye, expected 0")
+
+
 CASES = {
     "workers_1": case_workers_1,
     "workers_2": case_workers_2,
@@ -837,6 +897,7 @@ CASES = {
     "worker_frozen": case_worker_frozen,
     "non_loopback_needs_token": case_non_loopback_needs_token,
     "worker_gives_up": case_worker_gives_up,
+    "bad_master": case_bad_master,
 }
 
 
