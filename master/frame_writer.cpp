@@ -37,6 +37,11 @@ void FrameWriter::flush() {
   idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
 }
 
+std::string FrameWriter::first_error() const {
+  std::lock_guard lock(mutex_);
+  return first_error_;
+}
+
 void FrameWriter::loop() {
   std::unique_lock lock(mutex_);
   for (;;) {
@@ -54,6 +59,7 @@ void FrameWriter::loop() {
     }
     if (!error.empty() && on_error_) on_error_(error);
     lock.lock();
+    if (!error.empty() && first_error_.empty()) first_error_ = error;
     busy_ = false;
     if (queue_.empty()) idle_.notify_all();
   }

@@ -26,6 +26,8 @@ class FrameWriter {
   [[nodiscard]] std::size_t pending() const;
   /// Blocks until every submitted frame is written (or failed).
   void flush();
+  /// The first failure ("path: reason"), empty when every write succeeded.
+  [[nodiscard]] std::string first_error() const;
 
  private:
   void loop();
@@ -36,6 +38,7 @@ class FrameWriter {
   std::condition_variable wake_, idle_;
   std::deque<std::pair<std::string, Image>> queue_;
   bool busy_ = false;
+  std::string first_error_;
   bool stop_ = false;
   std::thread thread_;
 };

@@ -1,5 +1,6 @@
 // rtc-master: splits frames of a scene into tiles, hands them to rtc-worker processes over TCP,
 // reassembles and writes the frames, and logs the frame rate next to the link-bound frame rate.
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "common/scene/scene_cli.h"
 #include "master/master_server.h"
 #include "protocol/auth.h"
+#include "protocol/message.h"
 
 namespace {
 
@@ -59,7 +61,7 @@ int run(int argc, char** argv) {
   app.add_option("--tiles-per-worker", o.tiles_per_worker, "tiles each worker holds at once (default: 2 x its threads + 2)")
       ->check(CLI::Range(2, 4096));
   app.add_option("--heartbeat-timeout", o.heartbeat_timeout_ms, "drop a worker silent for this many ms")
-      ->check(CLI::Range(100, 3600000))
+      ->check(CLI::Range(300, 3600000))
       ->capture_default_str();
   app.add_option("--drain-seconds", o.drain_seconds, "after SIGINT/SIGTERM, time to finish the frames in flight")
       ->check(CLI::Range(0, 3600))
@@ -100,7 +102,16 @@ int run(int argc, char** argv) {
   o.write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
   o.write_options.write_depth = !no_depth;
   o.write_options.write_normal = !no_normal;
+  // A tile's pixels travel in one message: the largest tile must fit its payload limit.
+  const std::size_t tile_bytes = rtc::max_encoded_tile_bytes(rtc::raw_tile_bytes(o.tile_size, o.tile_size, o.wire, o.channels));
+  if (tile_bytes == 0 || tile_bytes + 128 > rtc::protocol::kMaxPayload) {
+    throw rtc::Error("--tile " + std::to_string(o.tile_size) + ": a " + std::string(rtc::wire_format_name(o.wire)) +
+                     " tile of that size (with its EXR channels) exceeds the " +
+                     std::to_string(rtc::protocol::kMaxPayload >> 20) + " MiB message limit; use a smaller --tile");
+  }
   if (!token_file.empty()) o.token = rtc::protocol::read_token_file(token_file);
+  // Three heartbeats fit in the timeout, so one late answer does not drop a worker.
+  o.heartbeat_ms = std::min(o.heartbeat_ms, o.heartbeat_timeout_ms / 3);
   std::optional<rtc::FrameRange> requested;
   if (!frames_text.empty()) requested = rtc::parse_frame_range(frames_text);
 

@@ -55,6 +55,7 @@ struct Worker {
   Clock::time_point probe_sent;
   std::map<std::pair<std::uint32_t, std::uint32_t>, Clock::time_point> assigned_at;  // (seq, tile)
   std::uint64_t tiles_accepted = 0;
+  bool rejected = false;  // an Error was sent; closing once it is flushed
 
   [[nodiscard]] std::string describe() const {
     std::string s = label + " (" + (hello.name.empty() ? std::string("?") : hello.name) + " at " + conn->peer();
@@ -111,13 +112,23 @@ class Master {
                  queue_.tiles_per_frame(), options_.tile_size, wire_format_name(options_.wire),
                  compression_name(options_.compression));
     io_.run();
-    if (writer_) writer_->flush();
-    const double total_s = run_started_ ? std::chrono::duration<double>(Clock::now() - run_start_).count() : 0.0;
+    if (writer_) {
+      writer_->flush();
+      // A write that failed after the loop stopped (the last frames) must still fail the run.
+      if (fatal_error_.empty() && !writer_->first_error().empty()) {
+        fatal_error_ = "writing frames: " + writer_->first_error();
+        spdlog::error("{}", fatal_error_);
+      }
+    }
+    const double total_s = run_started_ && !finished_.empty()
+                               ? std::chrono::duration<double>(last_complete_ - run_start_).count()
+                               : 0.0;
     const RunSummary summary = summarize(finished_, total_s);
     spdlog::info("{}", format_summary(summary));
     if (stats_file_.is_open()) {
       stats_file_ << summary_json(summary) << '\n';
       stats_file_.flush();
+      if (!stats_file_ && fatal_error_.empty()) fatal_error_ = "--stats-json " + options_.stats_json + ": write failed";
     }
     if (!fatal_error_.empty()) throw Error(fatal_error_);
     return 0;
@@ -199,6 +210,10 @@ class Master {
     Worker& ref = *w;
     workers_.emplace(id, std::move(w));
     spdlog::debug("connection from {} ({})", peer, ref.label);
+    // Before authentication only Hello, Auth and Heartbeat make sense: a peer must not make us
+    // allocate a 64 MiB tile buffer before it has proven the token.
+    ref.conn->set_max_payload(4096);
+    ref.conn->set_max_queued_bytes(64u << 20);
     ref.conn->start([this, id](proto::Message&& m, std::size_t wire) { on_message(id, std::move(m), wire); },
                     [this, id](const std::string& reason) { on_close(id, reason); });
     proto::Challenge challenge;
@@ -210,7 +225,9 @@ class Master {
 
   Worker* find(TileQueue::WorkerId id) {
     const auto it = workers_.find(id);
-    return it == workers_.end() || it->second->state == Worker::State::Closed ? nullptr : it->second.get();
+    return it == workers_.end() || it->second->state == Worker::State::Closed || it->second->rejected
+               ? nullptr
+               : it->second.get();
   }
 
   // ---- messages --------------------------------------------------------------------------
@@ -226,7 +243,8 @@ class Master {
   void handle(Worker& w, proto::Hello&& m, std::size_t) {
     if (w.state != Worker::State::AwaitHello) return unexpected(w, "Hello");
     w.hello = std::move(m);
-    w.threads = std::max<std::uint32_t>(1, w.hello.threads);
+    // A worker's claim sizes its share of the queue: keep a hostile one from hoarding every tile.
+    w.threads = std::clamp<std::uint32_t>(w.hello.threads, 1, 256);
     w.state = Worker::State::AwaitAuth;
   }
 
@@ -236,6 +254,7 @@ class Master {
       return reject(w, proto::ErrorCode::AuthFailed, "authentication failed (wrong token)");
     }
     w.auth_timer->cancel();
+    w.conn->set_max_payload(proto::kMaxPayload);
     w.max_outstanding = options_.tiles_per_worker > 0 ? static_cast<std::size_t>(options_.tiles_per_worker)
                                                       : std::max<std::size_t>(2, 2 * w.threads + 2);
     if (w.hello.build_id != build_id()) {
@@ -296,6 +315,15 @@ class Master {
       w.probe_sent = Clock::now();
       probe_running_ = true;
       w.conn->send(probe);
+      // Tiles wait while the probe runs, but not for long: after 5 s the run goes on (a slow
+      // link); the probe still counts when it arrives.
+      probe_timer_ = std::make_unique<asio::steady_timer>(io_, std::chrono::seconds(5));
+      probe_timer_->async_wait([this](const asio::error_code& ec) {
+        if (ec || !probe_running_) return;
+        probe_running_ = false;
+        spdlog::warn("link probe not finished after 5 s: rendering meanwhile (give --link-mbps on slow links)");
+        dispatch();
+      });
     }
     maybe_start();
     dispatch();
@@ -305,6 +333,7 @@ class Master {
     if (!w.probing) return unexpected(w, "ProbeData");
     w.probing = false;
     probe_running_ = false;
+    if (probe_timer_) probe_timer_->cancel();
     // Timed from the arrival of the probe's header to its last byte: the request's round trip
     // and the worker's preparation are left out, TCP's ramp-up is not (it is part of the link).
     const Clock::time_point now = Clock::now();
@@ -370,6 +399,7 @@ class Master {
   }
 
   void handle(Worker& w, proto::Heartbeat&& m, std::size_t) {
+    if (w.state != Worker::State::Ready && w.state != Worker::State::Scene) return unexpected(w, "Heartbeat");
     proto::HeartbeatAck ack;
     ack.seq = m.seq;
     ack.sent_us = m.sent_us;
@@ -398,6 +428,9 @@ class Master {
   // Tells the peer why (if it is still listening), logs with its address, and closes it.
   void reject(Worker& w, proto::ErrorCode code, const std::string& why) {
     spdlog::warn("worker {}: {}; closing the connection", w.describe(), why);
+    // Nothing more from or to it counts; its tiles go back now, not when the socket closes.
+    w.rejected = true;
+    queue_.worker_lost(w.id);
     proto::ErrorMessage error;
     error.code = code;
     error.text = why.substr(0, proto::kMaxText);
@@ -412,7 +445,10 @@ class Master {
     const Worker::State was = w.state;
     w.state = Worker::State::Closed;
     if (w.auth_timer) w.auth_timer->cancel();
-    if (w.probing) probe_running_ = false;
+    if (w.probing) {
+      probe_running_ = false;
+      if (probe_timer_) probe_timer_->cancel();
+    }
     const std::size_t requeued = queue_.worker_lost(id);
     if (was == Worker::State::Ready || was == Worker::State::Scene) {
       if (done_) {
@@ -449,6 +485,12 @@ class Master {
                  options_.loop_seconds > 0 ? " in a loop for " + std::to_string(options_.loop_seconds) + " s" : "");
   }
 
+  // A new frame can be opened right now (not only "more frames will come").
+  bool can_open_frame() const {
+    return run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) &&
+           more_frames() && (!writer_ || writer_->pending() < 4);
+  }
+
   bool more_frames() const {
     if (stopping_ || done_) return false;
     if (options_.loop_seconds > 0) {
@@ -458,8 +500,7 @@ class Master {
   }
 
   void open_frames() {
-    while (run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) && more_frames() &&
-           (!writer_ || writer_->pending() < 4)) {
+    while (can_open_frame()) {
       OpenFrame f;
       f.sequence = next_sequence_++;
       f.frame = next_frame_;
@@ -482,18 +523,24 @@ class Master {
     // capacity look smaller than it is (measured: 75 instead of 95 Mbit/s on a 100 Mbit link).
     if (probe_running_) return;
     const Clock::time_point now = Clock::now();
-    const bool tail = queue_.waiting() == 0 && !more_frames();
+    // The tail: nothing waits and no frame can be opened, so idle cores may take a copy of a
+    // straggler's tile (also mid-run: a frame stuck on one tile holds up the frames behind it).
+    const bool tail = queue_.waiting() == 0 && !can_open_frame();
     // A tile is a straggler's when it has been out for 3 times the usual round trip (20 ms at least).
     const auto reissue_before = now - std::chrono::microseconds(static_cast<std::int64_t>(
                                           1000 * std::max(20.0, 3 * tile_latency_ms_)));
     for (auto& [id, wp] : workers_) {
       Worker& w = *wp;
-      if (w.state != Worker::State::Ready || w.probing) continue;
+      if (w.state != Worker::State::Ready || w.probing || w.rejected) continue;
       while (queue_.outstanding(w.id) < w.max_outstanding) {
         std::optional<TileAssignment> a = queue_.next_for(w.id, now);
         if (!a && tail && queue_.outstanding(w.id) < w.threads) a = queue_.reissue_for(w.id, reissue_before);
         if (!a) break;
         assign(w, *a, now);
+        if (!w.conn->is_open() || w.state != Worker::State::Ready || w.rejected) {
+          queue_.worker_lost(w.id);  // sending closed it (not reading): the tile goes back
+          break;
+        }
       }
     }
   }
@@ -534,7 +581,7 @@ class Master {
       OpenFrame& f = node.mapped();
       const Clock::time_point now = Clock::now();
       f.stats.wall_ms = ms_between(f.started_at, now);
-      f.stats.interval_ms = ms_between(std::max(last_complete_, f.started_at), now);
+      f.stats.interval_ms = ms_between(last_complete_, now);
       last_complete_ = now;
       f.stats.link_bytes_per_s = link_bytes_per_s_;
       f.stats.link_source = link_bytes_per_s_ > 0 ? link_source_ : "unknown";
@@ -555,6 +602,10 @@ class Master {
       if (stats_file_.is_open()) {
         stats_file_ << frame_json(f.stats) << '\n';
         stats_file_.flush();
+        if (!stats_file_) {
+          finished_.push_back(std::move(f.stats));
+          return fatal("--stats-json " + options_.stats_json + ": write failed (disk full?)");
+        }
       }
       finished_.push_back(std::move(f.stats));
     }
@@ -581,7 +632,9 @@ class Master {
       ++heartbeat_seq_;
       for (auto& [id, w] : workers_) {
         if (w->state == Worker::State::Closed) continue;
-        if (ms_between(w->last_heard, now) > options_.heartbeat_timeout_ms) {
+        // A big message on its way (a probe, a large tile) counts as hearing from it.
+        const Clock::time_point heard = std::max(w->last_heard, w->conn->header_arrived());
+        if (ms_between(heard, now) > options_.heartbeat_timeout_ms) {
           w->conn->close("missed heartbeats: nothing heard for " + std::to_string(options_.heartbeat_timeout_ms) + " ms");
           continue;
         }
@@ -653,8 +706,10 @@ class Master {
     asio::error_code ec;
     acceptor_.close(ec);
     signals_.cancel(ec);
+    signals_.clear(ec);  // a further Ctrl-C during the goodbyes ends the process the usual way
     tick_.cancel();
     if (drain_timer_) drain_timer_->cancel();
+    if (probe_timer_) probe_timer_->cancel();
     for (auto& [id, w] : workers_) {
       if (w->state == Worker::State::Closed) continue;
       if (w->auth_timer) w->auth_timer->cancel();
@@ -681,7 +736,7 @@ class Master {
   asio::ip::tcp::acceptor acceptor_;
   asio::signal_set signals_;
   asio::steady_timer tick_;
-  std::unique_ptr<asio::steady_timer> drain_timer_, stop_timer_;
+  std::unique_ptr<asio::steady_timer> drain_timer_, stop_timer_, probe_timer_;
   std::string listening_on_;
 
   std::map<TileQueue::WorkerId, std::unique_ptr<Worker>> workers_;

@@ -122,20 +122,23 @@ TileOutcome TileQueue::complete(WorkerId worker, int frame, std::uint32_t tile) 
 std::size_t TileQueue::worker_lost(WorkerId worker) {
   const auto held = held_.find(worker);
   if (held == held_.end()) return 0;
-  std::size_t requeued = 0;
-  // Reverse order so push_front leaves them in their original (Hilbert) order.
-  for (auto it = held->second.rbegin(); it != held->second.rend(); ++it) {
-    const auto [frame, tile] = *it;
+  // Per frame, the tiles nobody else holds, pushed to the front in reverse Hilbert order so the
+  // queue hands them out again in Hilbert order (held_ is sorted by row-major index).
+  std::map<int, std::vector<std::uint32_t>> back;
+  for (const auto& [frame, tile] : held->second) {
     const auto f = frames_.find(frame);
     if (f == frames_.end()) continue;
     TileState& t = f->second.tiles.at(tile);
     t.holders.erase(worker);
-    if (!t.done && t.holders.empty()) {
-      f->second.waiting.push_front(tile);
-      ++requeued;
-    }
+    if (!t.done && t.holders.empty()) back[frame].push_back(tile);
   }
   held_.erase(held);
+  std::size_t requeued = 0;
+  for (auto& [frame, tiles] : back) {
+    std::sort(tiles.begin(), tiles.end(), [this](std::uint32_t a, std::uint32_t b) { return position_[a] > position_[b]; });
+    for (const std::uint32_t tile : tiles) frames_.at(frame).waiting.push_front(tile);
+    requeued += tiles.size();
+  }
   return requeued;
 }
 

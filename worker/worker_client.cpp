@@ -188,7 +188,9 @@ class WorkerClient {
         pool_(threads_,
               [this](std::uint64_t session, std::vector<std::uint8_t> message) {
                 asio::post(io_, [this, session, m = std::move(message)]() mutable {
-                  if (session == session_ && conn_) conn_->send_encoded(std::move(m));
+                  if (session != session_ || !conn_) return;
+                  if (tiles_outstanding_ > 0) --tiles_outstanding_;
+                  conn_->send_encoded(std::move(m));
                 });
               },
               [this](std::uint64_t session, std::string error) {
@@ -234,6 +236,7 @@ class WorkerClient {
     resolver->async_resolve(target_.host, std::to_string(target_.port),
                             [this, socket, resolver, timeout](const asio::error_code& ec,
                                                               const asio::ip::tcp::resolver::results_type& results) {
+                              if (finished_) return;
                               if (ec) {
                                 timeout->cancel();
                                 return retry("cannot resolve " + target_.host + ": " + ec.message());
@@ -242,6 +245,7 @@ class WorkerClient {
                                                   [this, socket, timeout](const asio::error_code& e,
                                                                           const asio::ip::tcp::endpoint&) {
                                                     timeout->cancel();
+                                                    if (finished_) return;
                                                     if (e) return retry(e == asio::error::operation_aborted
                                                                             ? std::string("connect timed out")
                                                                             : e.message());
@@ -279,6 +283,8 @@ class WorkerClient {
     const std::string peer = net::peer_name(socket);
     conn_ = std::make_shared<net::Connection>(std::move(socket), "master " + peer);
     welcomed_ = false;
+    tiles_outstanding_ = 0;
+    probes_this_session_ = 0;
     settings_.clear();
     scene_buffer_.clear();
     receiving_scene_ = false;
@@ -328,7 +334,7 @@ class WorkerClient {
     watchdog_.async_wait([this](const asio::error_code& ec) {
       if (ec || !conn_) return;
       const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
-      if (Clock::now() - last_heard_ > limit) {
+      if (Clock::now() - std::max(last_heard_, conn_->header_arrived()) > limit) {
         conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
         return;
       }
@@ -341,6 +347,7 @@ class WorkerClient {
     finished_ = true;
     asio::error_code ec;
     signals_.cancel(ec);
+    signals_.clear(ec);  // a further Ctrl-C ends the process the usual way
     retry_timer_.cancel();
     watchdog_.cancel();
     if (conn_) {
@@ -389,6 +396,7 @@ class WorkerClient {
     if (welcomed_) return unexpected();
     welcomed_ = true;
     heartbeat_ms_ = m.heartbeat_ms;
+    max_outstanding_ = m.max_outstanding;
     backoff_ms_ = 200;
     retry_logged_ = false;
     spdlog::info("connected to {} as worker w{} (up to {} tiles at once)", conn_->peer(), m.worker_id, m.max_outstanding);
@@ -479,6 +487,18 @@ class WorkerClient {
                                                           std::to_string(m.height) + " outside the " +
                                                           std::to_string(w) + "x" + std::to_string(h) + " frame");
     }
+    const std::size_t raw = raw_tile_bytes(static_cast<int>(m.width), static_cast<int>(m.height),
+                                           static_cast<WireFormat>(it->second.wire_format), it->second.channels);
+    if (raw == 0 || max_encoded_tile_bytes(raw) + 128 > proto::kMaxPayload) {
+      return fail_session(proto::ErrorCode::Protocol, "TileAssign of " + std::to_string(m.width) + "x" +
+                                                          std::to_string(m.height) + " pixels cannot be sent back in one message");
+    }
+    // The master promised at most max_outstanding tiles at once (Welcome): more is a flood.
+    if (tiles_outstanding_ >= std::max<std::uint32_t>(max_outstanding_, 2)) {
+      return fail_session(proto::ErrorCode::Protocol, "more than the " + std::to_string(max_outstanding_) +
+                                                          " tiles at once the master announced");
+    }
+    ++tiles_outstanding_;
     pool_.push(TileJob{session_, scene_, m, it->second});
   }
 
@@ -494,6 +514,7 @@ class WorkerClient {
   void handle(proto::HeartbeatAck&&) {}
 
   void handle(proto::ProbeRequest&& m) {
+    if (++probes_this_session_ > 4) return fail_session(proto::ErrorCode::Protocol, "more than 4 link probes");
     proto::ProbeData data;
     data.bytes.assign(m.bytes, 0);
     conn_->send(data);
@@ -538,6 +559,9 @@ class WorkerClient {
   int exit_code_ = 0;
   int backoff_ms_ = 200;
   std::uint32_t heartbeat_ms_ = 1000;
+  std::uint32_t max_outstanding_ = 0;
+  std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
+  int probes_this_session_ = 0;
   Clock::time_point lost_since_, last_heard_;
   std::string current_type_;
   std::shared_ptr<SceneSlot> scene_;

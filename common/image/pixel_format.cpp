@@ -282,6 +282,11 @@ std::size_t raw_tile_bytes(int width, int height, WireFormat format, std::uint8_
 //   with kChannelNormal: width * height normals x, y, z, as half in the half format, else f32.
 // Compression none sends these bytes; lz4 sends one LZ4_compress_default block (no frame);
 // zstd one ZSTD_compress frame at level 1. The receiver is told the raw size separately.
+std::size_t max_encoded_tile_bytes(std::size_t raw_bytes) {
+  // LZ4_COMPRESSBOUND and ZSTD_COMPRESSBOUND are both below raw + raw / 255 + 1024.
+  return raw_bytes + raw_bytes / 255 + 1024;
+}
+
 std::size_t encode_tile_pixels(const Image& tile, WireFormat format, Compression compression,
                                std::uint8_t channels, std::vector<std::uint8_t>& out) {
   RTC_CHECK(rgba_bytes(format) != 0, "encode_tile_pixels: unknown wire format");

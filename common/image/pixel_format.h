@@ -40,6 +40,10 @@ inline constexpr std::uint8_t kChannelNormal = 2;
 /// Bytes of a w x h tile before compression.
 [[nodiscard]] std::size_t raw_tile_bytes(int width, int height, WireFormat format, std::uint8_t channels);
 
+/// Upper bound on what encode_tile_pixels appends for `raw_bytes` raw bytes under any
+/// compression (compressed data can be a little larger than its input).
+[[nodiscard]] std::size_t max_encoded_tile_bytes(std::size_t raw_bytes);
+
 /// Encodes `tile` (RGBA, plus depth/normal when `channels` asks; the tile must have them) and
 /// appends the (compressed) bytes to `out`; returns the raw (uncompressed) size. Deterministic.
 /// Thread-safe. Caller bugs (missing channel, channels with Rgba8) are RTC_CHECKs.

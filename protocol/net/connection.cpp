@@ -73,6 +73,14 @@ void Connection::read_header() {
              version_mismatch ? protocol::ErrorCode::Version : protocol::ErrorCode::Protocol, header.error);
       return;
     }
+    if (closing_after_flush_) return;  // rejected or saying goodbye: read nothing more
+    if (header.header.payload_length > max_payload_) {
+      const std::string why = protocol::type_name(header.header.type) + " payload of " +
+                              std::to_string(header.header.payload_length) + " bytes exceeds the " +
+                              std::to_string(max_payload_) + " allowed at this point";
+      reject("bad message from " + peer_ + ": " + why, protocol::ErrorCode::Protocol, why);
+      return;
+    }
     read_payload(header.header);
   });
 }
@@ -81,7 +89,7 @@ void Connection::read_payload(protocol::Header header) {
   payload_.resize(header.payload_length);
   auto self = shared_from_this();
   asio::async_read(socket_, asio::buffer(payload_), [this, self, header](const asio::error_code& ec, std::size_t) {
-    if (closed_) return;
+    if (closed_ || closing_after_flush_) return;
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +
@@ -109,6 +117,10 @@ void Connection::send(const protocol::Message& message) {
 
 void Connection::send_encoded(std::vector<std::uint8_t> bytes) {
   if (closed_ || closing_after_flush_ || bytes.empty()) return;
+  if (queued_bytes_ + bytes.size() > max_queued_bytes_) {
+    finish(peer_ + " is not reading: " + std::to_string((queued_bytes_ + bytes.size()) >> 20) + " MiB queued");
+    return;
+  }
   queued_bytes_ += bytes.size();
   queue_.push_back(std::move(bytes));
   if (!writing_) write_next();

@@ -61,6 +61,14 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void close_after_flush(const std::string& reason,
                          std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
 
+  /// Largest payload accepted from the peer from now on (at most protocol::kMaxPayload, the
+  /// default); a larger announced payload is rejected from its header, before any allocation.
+  /// A master keeps it small until the peer has authenticated.
+  void set_max_payload(std::uint32_t bytes) { max_payload_ = bytes; }
+  /// Bytes that may wait in the write queue; beyond that the peer is not reading and the
+  /// connection is closed ("PEER is not reading: N MiB queued"). Default 256 MiB.
+  void set_max_queued_bytes(std::size_t bytes) { max_queued_bytes_ = bytes; }
+
   /// Called whenever the write queue becomes empty (e.g. to stream the next scene chunk).
   void set_drained_handler(std::function<void()> on_drained) { on_drained_ = std::move(on_drained); }
 
@@ -90,6 +98,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::vector<std::uint8_t> payload_;
   std::deque<std::vector<std::uint8_t>> queue_;
   std::size_t queued_bytes_ = 0;
+  std::size_t max_queued_bytes_ = 256u << 20;
+  std::uint32_t max_payload_ = protocol::kMaxPayload;
   bool writing_ = false;
   bool closed_ = false;
   bool closing_after_flush_ = false;

@@ -754,11 +754,13 @@ def case_sigint_finishes_cleanly(c):
 def case_worker_frozen(c):
     # A worker that stops answering (SIGSTOP: its socket stays open) is dropped after
     # --heartbeat-timeout; its tiles go to the other worker and every frame still comes out.
+    # (Before the drop the tail re-issue already copies its tiles to the keeper, so the run must
+    # last longer than the timeout for the drop to happen inside it: 16 frames, ~3 s.)
     scene = [*MEDIUM, "--tile", "16"]
-    ref = c.reference("ref", scene, "0-5", "png")
+    ref = c.reference("ref", scene, "0-15", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-5", "--out",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out",
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats,
                                                 "--min-workers", "2", "--heartbeat-timeout", "1000"])
     keeper = c.start_worker("keeper", addr, 1)
@@ -776,9 +778,9 @@ def case_worker_frozen(c):
         frozen.send(signal.SIGCONT)
     expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
     frames, _ = read_stats(stats)
-    if sorted(f["frame"] for f in frames) != list(range(0, 6)):
-        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-5")
-    c.expect_frames_equal(out, "m", ref, range(0, 6), "png")
+    if sorted(f["frame"] for f in frames) != list(range(0, 16)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-15")
+    c.expect_frames_equal(out, "m", ref, range(0, 16), "png")
     # Woken up, the frozen worker finds its connection closed and, with no master left, gives up or
     # keeps retrying; either way it is killed at cleanup.
 
@@ -883,6 +885,30 @@ def case_bad_master(c):
             fail(f"rtc-worker: {describe_rc(rc)} after the master's goodbye, expected 0")
 
 
+def case_big_message_before_auth(c):
+    """A peer that has not authenticated announces a 60 MiB TileResult: the master refuses it
+    from the header alone (no allocation), says why, closes, logs the peer, and stays up."""
+    token = c.path("token")
+    with open(token, "w", encoding="utf-8") as f:
+        f.write("big-message-secret\n")
+    master, addr, _ = c.start_master("master", [*SMALL, "--frames", "0-0", "--token-file", token])
+    host, port = split_address(addr)
+    with socket.create_connection((host, port), timeout=10) as sock:
+        read_challenge(sock)
+        sock.sendall(HEADER.pack(MAGIC, VERSION, 11, 60 << 20, 0))
+        data, closed = read_until_closed(sock, 10)
+    if not closed:
+        fail("the master kept the connection open after a 60 MiB header before authentication")
+    types = [t for t, _ in parse_messages(data)]
+    if MSG_ERROR not in types:
+        fail(f"the master sent no Error before closing (types {types})")
+    expect_log(master, r"exceeds the 4096 allowed at this point", "the refused header to be logged", watch=[master])
+    if master.poll() is not None:
+        fail(f"the master exited: {describe_rc(master.poll())}")
+    master.send(signal.SIGTERM)
+    expect_exit(master, 0, 15, "exit 0 on SIGTERM")
+
+
 CASES = {
     "workers_1": case_workers_1,
     "workers_2": case_workers_2,
@@ -898,6 +924,7 @@ CASES = {
     "non_loopback_needs_token": case_non_loopback_needs_token,
     "worker_gives_up": case_worker_gives_up,
     "bad_master": case_bad_master,
+    "big_message_before_auth": case_big_message_before_auth,
 }
 
 
