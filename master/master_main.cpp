@@ -21,10 +21,10 @@
 
 namespace {
 
-bool ends_with_exr(const std::string& path) {
+std::string lower_extension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".exr";
+  return ext;
 }
 
 int run(int argc, char** argv) {
@@ -45,7 +45,7 @@ int run(int argc, char** argv) {
                  "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
   app.add_option("--tile", o.tile_size, "tile size in pixels")->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_option("--wire", wire_text, "pixel format on the wire: rgba8 (sRGB, 4 B/px), half (8 B/px), float (16 B/px); "
-                                      "default: rgba8, or half (float with --exr-float) for .exr output");
+                                      "default: rgba8; half (float with --exr-float) for .exr; float for .tif");
   app.add_option("--compress", compress_text, "tile compression: none, lz4, zstd")->capture_default_str();
   app.add_option("--link-mbps", o.link_mbps, "link capacity in Mbit/s for the bandwidth-limited frame rate "
                                             "(default: measured on the first worker's connection)")
@@ -78,21 +78,28 @@ int run(int argc, char** argv) {
   const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
-  const bool exr = !o.out_pattern.empty() && ends_with_exr(o.out_pattern);
+  // EXR and TIFF store float pixels (write_image); PNG, JPEG and PPM store 8-bit sRGB.
+  const std::string ext = o.out_pattern.empty() ? std::string() : lower_extension(o.out_pattern);
+  const bool exr = ext == ".exr";
+  const bool tiff = ext == ".tif" || ext == ".tiff";
   if (wire_text.empty()) {
-    o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half) : rtc::WireFormat::Rgba8;
+    o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half)
+                 : (tiff ? rtc::WireFormat::Float : rtc::WireFormat::Rgba8);
   } else {
     const std::optional<rtc::WireFormat> wire = rtc::parse_wire_format(wire_text);
     if (!wire) throw rtc::Error("--wire: expected rgba8, half or float, got \"" + wire_text + "\"");
     o.wire = *wire;
   }
-  if (exr && o.wire == rtc::WireFormat::Rgba8) {
-    throw rtc::Error("--wire rgba8 carries 8-bit sRGB pixels: EXR output (" + o.out_pattern + ") needs --wire half or float");
+  if ((exr || tiff) && o.wire == rtc::WireFormat::Rgba8) {
+    throw rtc::Error("--wire rgba8 carries 8-bit sRGB pixels: float output (" + o.out_pattern + ") needs --wire half or float");
+  }
+  if (tiff && o.wire == rtc::WireFormat::Half) {
+    spdlog::warn("--wire half with TIFF output: the files hold half-precision values (rtc-render writes float)");
   }
   if (exr && exr_float && o.wire == rtc::WireFormat::Half) {
     spdlog::warn("--exr-float with --wire half: the files hold half-precision values");
   }
-  if (!exr && o.wire != rtc::WireFormat::Rgba8 && !o.out_pattern.empty()) {
+  if (!exr && !tiff && o.wire != rtc::WireFormat::Rgba8 && !o.out_pattern.empty()) {
     spdlog::warn("--wire {} with 8-bit output ({}): the files equal rtc-render's only with --wire float or rgba8",
                  rtc::wire_format_name(o.wire), o.out_pattern);
   }

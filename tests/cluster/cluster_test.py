@@ -909,6 +909,34 @@ def case_big_message_before_auth(c):
     expect_exit(master, 0, 15, "exit 0 on SIGTERM")
 
 
+def case_master_cli_errors(c):
+    """Bad rtc-master options fail before anything listens: exit 1, a message naming the option."""
+    cases = [
+        (["--wire", "rgba16"], r"--wire: expected rgba8, half or float"),
+        (["--compress", "gzip"], r"--compress: expected none, lz4 or zstd"),
+        (["--out", c.path("x_####.exr"), "--wire", "rgba8"], r"--wire rgba8 carries 8-bit sRGB"),
+        (["--out", c.path("x_####.tif"), "--wire", "rgba8"], r"--wire rgba8 carries 8-bit sRGB"),
+        (["--tile", "4096", "--wire", "float"], r"--tile 4096: .* exceeds the 64 MiB message limit"),
+        (["--out", c.path("missing", "x_####.png")], r"--out: .* does not exist"),
+        (["--frames", "5-2"], r"--frames: 5-2 is an empty range"),
+        (["--token-file", c.path("no-such-token")], r"no-such-token"),
+        (["--listen", "127.0.0.1:99999"], r"bad port"),
+        ([c.path("no-such-scene.json")], r"no-such-scene.json"),
+    ]
+    for i, (args, pattern) in enumerate(cases):
+        ready = c.path(f"ready-{i}")
+        p = c.spawn(f"master-{i}", [c.args.master, *SMALL, *args, "--listen", "127.0.0.1:0", "--ready-file", ready]
+                    if "--listen" not in args else [c.args.master, *SMALL, *args, "--ready-file", ready])
+        rc = p.wait(30, f"fail on {args}")
+        if rc != 1:
+            fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1")
+        if not re.search(pattern, p.log()):
+            fail(f"rtc-master {' '.join(args)}: no message matching /{pattern}/ in:\n{p.log()}")
+        if os.path.exists(ready):
+            fail(f"rtc-master {' '.join(args)} started listening before failing")
+        print(f"ok: {' '.join(args)} -> {pattern}")
+
+
 CASES = {
     "workers_1": case_workers_1,
     "workers_2": case_workers_2,
@@ -925,6 +953,7 @@ CASES = {
     "worker_gives_up": case_worker_gives_up,
     "bad_master": case_bad_master,
     "big_message_before_auth": case_big_message_before_auth,
+    "master_cli_errors": case_master_cli_errors,
 }
 
 
