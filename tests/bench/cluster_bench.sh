@@ -94,8 +94,8 @@ case "$mode" in
     for scene in "${scenes[@]}"; do
       name="$(basename "$(dirname "$scene")")/$(basename "$scene")"
       for t in 1 2 4; do
-        # rtc-render: the same frame 10 times with t threads; its own per-frame render time.
-        "$render" "$scene" --width 512 --height 512 --frames 0-9 --threads "$t" --out "$work/r_####.png" \
+        # rtc-render: the same frame 20 times with t threads; its own per-frame render time.
+        "$render" "$scene" --width 512 --height 512 --frames 0-19 --threads "$t" --out "$work/r_####.png" \
           --log-level warn > "$work/render.log"
         python3 - "$work/render.log" "$name" "$t" >> "$out" <<'PY'
 import json, re, statistics, sys
