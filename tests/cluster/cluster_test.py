@@ -937,6 +937,83 @@ def case_master_cli_errors(c):
         print(f"ok: {' '.join(args)} -> {pattern}")
 
 
+def _processes_with(text):
+    """pids of processes whose command line contains `text` (from /proc)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                cmdline = f.read().replace(b"\0", b" ").decode("utf-8", "replace")
+        except OSError:
+            continue
+        if text in cmdline:
+            found.append(int(entry))
+    return found
+
+
+def _run_launcher(c, name, extra, interrupt):
+    """deploy/launch-local.sh 2 -- EXTRA in its own process group (as from a terminal); with
+    `interrupt`, SIGINT to the whole group once the first frame is logged. Returns (rc, log)."""
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
+    build = os.path.dirname(os.path.dirname(os.path.abspath(c.args.master)))
+    log_path = c.path(f"{name}.log")
+    env = dict(os.environ, RTC_BUILD_DIR=build, TMPDIR=c.tmp)
+    with open(log_path, "wb") as log:
+        p = subprocess.Popen(["bash", script, "2", "--", *extra], stdin=subprocess.DEVNULL, stdout=log,
+                             stderr=subprocess.STDOUT, cwd=c.tmp, env=env, start_new_session=True)
+    def text():
+        with open(log_path, encoding="utf-8", errors="replace") as f:
+            return f.read()
+    try:
+        if interrupt:
+            wait_for(lambda: re.search(r"frame \d+ \[seq", text()) or p.poll() is not None, 60, "the first frame")
+            os.killpg(p.pid, signal.SIGINT)
+        try:
+            rc = p.wait(timeout=90)
+        except subprocess.TimeoutExpired:
+            fail(f"launch-local.sh did not exit within 90 s:\n{text()}")
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    out = text()
+    m = re.search(r"launch-local: master on (\S+);", out)
+    if not m:
+        fail(f"launch-local.sh printed no master address:\n{out}")
+    # No master or worker of this run may outlive the script.
+    deadline = time.monotonic() + 10
+    while _processes_with(f"--connect {m.group(1)}") and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = _processes_with(f"--connect {m.group(1)}") + _processes_with(os.path.join(c.tmp, "rtc-local."))
+    if left:
+        fail(f"processes left behind by launch-local.sh: {left}")
+    return rc, out
+
+
+def case_launch_local(c):
+    """deploy/launch-local.sh: 2 workers render frames identical to rtc-render's and nothing is
+    left behind; Ctrl-C (SIGINT to the process group) finishes the frames in flight, exits 0,
+    and again leaves nothing behind."""
+    ref = c.reference("ref", SMALL, "0-3", "png")
+    out = c.mkdir("run")
+    rc, log = _run_launcher(c, "launch", [*SMALL, "--frames", "0-3", "--out", os.path.join(out, "m_####.png")], False)
+    if rc != 0:
+        fail(f"launch-local.sh exited {rc}:\n{log}")
+    c.expect_frames_equal(out, "m", ref, range(0, 4), "png")
+    out2 = c.mkdir("interrupted")
+    rc, log = _run_launcher(c, "launch-int", [*MEDIUM, "--frames", "0-23", "--out", os.path.join(out2, "m_####.png")], True)
+    if rc != 0:
+        fail(f"launch-local.sh exited {rc} after Ctrl-C, expected 0:\n{log}")
+    if "taking no new frames" not in log:
+        fail(f"the master did not report stopping on SIGINT:\n{log}")
+    written = sorted(f for f in os.listdir(out2) if f.endswith(".png"))
+    if not 1 <= len(written) < 24:
+        fail(f"expected some but not all 24 frames after Ctrl-C, got {len(written)}")
+    print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+
+
 CASES = {
     "workers_1": case_workers_1,
     "workers_2": case_workers_2,
@@ -954,6 +1031,7 @@ CASES = {
     "bad_master": case_bad_master,
     "big_message_before_auth": case_big_message_before_auth,
     "master_cli_errors": case_master_cli_errors,
+    "launch_local": case_launch_local,
 }
 
 
