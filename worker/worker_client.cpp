@@ -39,7 +39,8 @@ using Clock = std::chrono::steady_clock;
 namespace proto = protocol;
 
 /// The scene a worker holds, with its renderer and the frames it has prepared. Shared by the
-/// render threads; prepare() is serialized by a mutex (Renderer::prepare is not thread-safe).
+/// render threads; Renderer::prepare calls are serialized (they must not overlap), and may run
+/// while other threads render tiles of frames prepared earlier.
 class SceneSlot {
  public:
   SceneSlot(proto::Digest hash, Scene scene, const RenderOptions& options)
@@ -48,12 +49,14 @@ class SceneSlot {
   [[nodiscard]] const proto::Digest& hash() const { return hash_; }
   [[nodiscard]] const Renderer& renderer() const { return renderer_; }
 
+  /// The prepared state of `frame`. Threads asking for a frame that is already prepared never
+  /// wait for another frame's kd-tree build: the map and the build have separate locks.
   std::shared_ptr<const FrameState> frame(int frame) {
-    std::lock_guard lock(mutex_);
-    for (auto& [f, state] : prepared_) {
-      if (f == frame) return state;
-    }
+    if (std::shared_ptr<const FrameState> state = find(frame)) return state;
+    std::lock_guard build_lock(build_mutex_);
+    if (std::shared_ptr<const FrameState> state = find(frame)) return state;  // built meanwhile
     std::shared_ptr<const FrameState> state = renderer_.prepare(frame);
+    std::lock_guard lock(map_mutex_);
     // A few frames stay prepared (several are in flight); the oldest goes first.
     if (prepared_.size() >= 4) prepared_.pop_front();
     prepared_.emplace_back(frame, state);
@@ -61,9 +64,18 @@ class SceneSlot {
   }
 
  private:
+  std::shared_ptr<const FrameState> find(int frame) {
+    std::lock_guard lock(map_mutex_);
+    for (const auto& [f, state] : prepared_) {
+      if (f == frame) return state;
+    }
+    return nullptr;
+  }
+
   proto::Digest hash_;
   Renderer renderer_;
-  std::mutex mutex_;
+  std::mutex build_mutex_;  // Renderer::prepare calls must not overlap
+  std::mutex map_mutex_;    // guards prepared_
   std::deque<std::pair<int, std::shared_ptr<const FrameState>>> prepared_;
 };
 
