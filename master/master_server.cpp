@@ -59,7 +59,9 @@ struct Worker {
 
   [[nodiscard]] std::string describe() const {
     std::string s = label + " (" + (hello.name.empty() ? std::string("?") : hello.name) + " at " + conn->peer();
-    if (hello.threads > 0) s += ", " + std::to_string(hello.threads) + " threads, " + hello.isa;
+    if (hello.threads > 0) {
+      s += ", " + std::to_string(hello.threads) + (hello.threads == 1 ? " thread, " : " threads, ") + hello.isa;
+    }
     return s + ")";
   }
 };
