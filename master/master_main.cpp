@@ -1,7 +1,6 @@
 // rtc-master: splits frames of a scene into tiles, hands them to rtc-worker processes over TCP,
 // reassembles and writes the frames, and logs the frame rate next to the link-bound frame rate.
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -20,12 +19,6 @@
 #include "protocol/message.h"
 
 namespace {
-
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
-}
 
 int run(int argc, char** argv) {
   CLI::App app{"rtc-master: render frames of a scene on rtc-worker processes connected over TCP"};
@@ -79,9 +72,10 @@ int run(int argc, char** argv) {
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
   // EXR and TIFF store float pixels (write_image); PNG, JPEG and PPM store 8-bit sRGB.
-  const std::string ext = o.out_pattern.empty() ? std::string() : lower_extension(o.out_pattern);
-  const bool exr = ext == ".exr";
-  const bool tiff = ext == ".tif" || ext == ".tiff";
+  const std::optional<rtc::ImageFileKind> kind =
+      o.out_pattern.empty() ? std::nullopt : rtc::image_file_kind(o.out_pattern);
+  const bool exr = kind == rtc::ImageFileKind::Exr;
+  const bool tiff = kind == rtc::ImageFileKind::Tiff;
   if (wire_text.empty()) {
     o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half)
                  : (tiff ? rtc::WireFormat::Float : rtc::WireFormat::Rgba8);

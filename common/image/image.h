@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,6 +66,13 @@ struct ImageWriteOptions {
 /// Safe to call from several threads for different paths.
 void write_image(const std::filesystem::path& path, const Image& image,
                  const ImageWriteOptions& options = {});
+
+/// The file formats write_image knows, by extension (case-insensitive): .exr; .png; .tif/.tiff;
+/// .jpg/.jpeg; .ppm. EXR and TIFF store float pixels; PNG, JPEG and PPM 8-bit sRGB.
+enum class ImageFileKind { Exr, Png, Tiff, Jpeg, Ppm };
+
+/// The kind write_image would write `path` as; std::nullopt for an unknown extension.
+[[nodiscard]] std::optional<ImageFileKind> image_file_kind(const std::filesystem::path& path);
 
 /// Reads the first subimage of any OpenImageIO-readable file as linear float RGBA: 8- and
 /// 16-bit integer files are sRGB-decoded on RGB (8-bit exactly, by srgb8_to_linear) unless

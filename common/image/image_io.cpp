@@ -28,7 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-enum class FileKind { Exr, Png, Tiff, Jpeg, Ppm };
+using FileKind = ImageFileKind;
 
 struct FileFormat {
   std::string_view extension;
@@ -242,6 +242,12 @@ double srgb_to_linear_exact(double v) {
 }
 
 }  // namespace
+
+std::optional<ImageFileKind> image_file_kind(const std::filesystem::path& path) {
+  const FileFormat* format = find_format(path);
+  if (format == nullptr) return std::nullopt;
+  return format->kind;
+}
 
 void write_image(const fs::path& path, const Image& image, const ImageWriteOptions& options) {
   const std::string name = path.string();
