@@ -41,8 +41,8 @@ int run(int argc, char** argv) {
                  "format (.exr, .png) (default: out/<scene>_####.png)");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
-  app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
-  app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of 2x2 packets (same pixels)");
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
+  app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
@@ -87,8 +87,8 @@ int run(int argc, char** argv) {
   options.packets = !single_rays;
   options.aovs = !(no_depth && no_normal);
   rtc::Renderer renderer(std::move(scene), options);
-  spdlog::info("kernels: {} ({}), {} threads", rtc::isa_name(renderer.isa()),
-               single_rays ? "single rays" : "2x2 packets",
+  spdlog::info("kernels: {}, {}, {} threads", rtc::isa_name(renderer.isa()),
+               single_rays ? std::string("single rays") : rtc::isa_packet_description(renderer.isa()),
                threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency()));
 
   rtc::ImageWriteOptions write_options;

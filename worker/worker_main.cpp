@@ -20,7 +20,7 @@ int run(int argc, char** argv) {
   app.add_option("--connect", o.connect, "the master's HOST:PORT")->capture_default_str();
   app.add_option("--threads", o.threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--token-file", token_file, "file holding the shared token the master requires");
-  app.add_option("--isa", isa_text, "kernel ISA: sse4 (default: the best this CPU and build support)");
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
   app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");
   app.add_option("--retry-seconds", o.retry_seconds,
                  "give up when the master has been unreachable this long (0: retry for ever)")

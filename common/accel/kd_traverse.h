@@ -234,8 +234,28 @@ inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
   return r;
 }
 
-/// Closest hit (kOcclusion = false) or any hit (true) for the active lanes. Packets whose
-/// active lanes disagree in a direction sign are traced one ray at a time.
+/// One lane of a packet traced alone (N = 1), its result written back into the packet.
+template <int N, bool kOcclusion>
+inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
+  const RayPacket<1> r = lane_ray(ray, i);
+  HitPacket<1> h{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
+  vbool<1> occ(occluded.lane(i));
+  traverse_coherent<1, kOcclusion>(tree, r, vbool<1>(true), h, occ);
+  if constexpr (kOcclusion) {
+    if (occ.m) occluded |= vbool<N>::from_bits(1u << i);
+  } else {
+    hit.t.set_lane(i, h.t.v);
+    hit.beta.set_lane(i, h.beta.v);
+    hit.gamma.set_lane(i, h.gamma.v);
+    hit.prim.set_lane(i, h.prim.v);
+  }
+}
+
+/// Closest hit (kOcclusion = false) or any hit (true) for the active lanes. The traversal
+/// needs one direction sign per axis, so a packet whose active lanes point into different
+/// octants (reflections off curved surfaces, shadow rays from scattered hits) is regrouped:
+/// each octant's lanes traverse as one masked packet, and an octant with a single lane goes
+/// alone through the N = 1 kernel. Lanes never interact, so the bits are the same either way.
 template <int N, bool kOcclusion>
 void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
                   vbool<N>& occluded) {
@@ -247,19 +267,19 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
     const unsigned sz = bits(sign_bit(ray.dir[2])) & lanes;
     const bool coherent = (sx == 0 || sx == lanes) && (sy == 0 || sy == lanes) && (sz == 0 || sz == lanes);
     if (!coherent) {
-      for (int i = 0; i < N; ++i) {
-        if (!active.lane(i)) continue;
-        const RayPacket<1> r = lane_ray(ray, i);
-        HitPacket<1> h{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
-        vbool<1> occ(occluded.lane(i));
-        traverse_coherent<1, kOcclusion>(tree, r, vbool<1>(true), h, occ);
-        if constexpr (kOcclusion) {
-          if (occ.m) occluded |= vbool<N>::from_bits(1u << i);
+      unsigned left = lanes;
+      while (left != 0) {
+        const int first = __builtin_ctz(left);
+        // Lanes in the same octant as the first remaining one.
+        const unsigned mx = ((sx >> first) & 1u) ? sx : ~sx;
+        const unsigned my = ((sy >> first) & 1u) ? sy : ~sy;
+        const unsigned mz = ((sz >> first) & 1u) ? sz : ~sz;
+        const unsigned group = left & mx & my & mz;
+        left &= ~group;
+        if ((group & (group - 1)) == 0) {
+          trace_lane<N, kOcclusion>(tree, ray, first, hit, occluded);
         } else {
-          hit.t.set_lane(i, h.t.v);
-          hit.beta.set_lane(i, h.beta.v);
-          hit.gamma.set_lane(i, h.gamma.v);
-          hit.prim.set_lane(i, h.prim.v);
+          traverse_coherent<N, kOcclusion>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
         }
       }
       return;

@@ -13,6 +13,16 @@ namespace isa_sse42 {
 const TraceKernels& trace_kernels_for_isa();
 }
 #endif
+#ifdef RTC_HAVE_ISA_AVX2
+namespace isa_avx2 {
+const TraceKernels& trace_kernels_for_isa();
+}
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+namespace isa_avx512 {
+const TraceKernels& trace_kernels_for_isa();
+}
+#endif
 
 const TraceKernels& trace_kernels(Isa isa) {
   require_cpu_support(isa);
@@ -20,6 +30,14 @@ const TraceKernels& trace_kernels(Isa isa) {
 #ifdef RTC_HAVE_ISA_SSE42
     case Isa::Sse42:
       return isa_sse42::trace_kernels_for_isa();
+#endif
+#ifdef RTC_HAVE_ISA_AVX2
+    case Isa::Avx2:
+      return isa_avx2::trace_kernels_for_isa();
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+    case Isa::Avx512:
+      return isa_avx512::trace_kernels_for_isa();
 #endif
     default:
       break;

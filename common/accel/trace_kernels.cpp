@@ -8,7 +8,7 @@ RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
 namespace {
 
-constexpr int kWidth = 4;
+constexpr int kWidth = RTC_ISA_WIDTH;  // 4 (SSE4.2), 8 (AVX2) or 16 (AVX-512)
 
 template <int N>
 void load(const RayQuery* rays, std::size_t count, RayPacket<N>& p, vbool<N>& active) {

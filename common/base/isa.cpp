@@ -17,6 +17,24 @@ std::string_view isa_name(Isa isa) {
   return "unknown";
 }
 
+int isa_packet_width(Isa isa) {
+  switch (isa) {
+    case Isa::Sse42:
+      return 4;
+    case Isa::Avx2:
+      return 8;
+    case Isa::Avx512:
+      return 16;
+  }
+  return 4;
+}
+
+std::string isa_packet_description(Isa isa) {
+  const int w = isa_packet_width(isa);
+  const int bw = w == 4 ? 2 : 4;
+  return std::to_string(w) + "-wide packets (" + std::to_string(bw) + "x" + std::to_string(w / bw) + " pixels)";
+}
+
 Isa parse_isa(std::string_view name) {
   if (name == "sse4" || name == "sse42" || name == "sse4.2") return Isa::Sse42;
   if (name == "avx2") return Isa::Avx2;
@@ -30,9 +48,10 @@ bool cpu_supports(Isa isa) {
     case Isa::Sse42:
       return __builtin_cpu_supports("sse4.2") && __builtin_cpu_supports("popcnt");
     case Isa::Avx2:
-      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+             __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt");
     case Isa::Avx512:
-      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+      return cpu_supports(Isa::Avx2) && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
              __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
   }
   return false;

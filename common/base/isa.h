@@ -7,11 +7,14 @@
 
 namespace rtc {
 
-/// Kernel ISA levels, lowest first. Part 1 of the tracer builds sse42 only; avx2 and avx512
-/// slot in here and in cmake/rtc_isa.cmake.
+/// Kernel ISA levels, lowest first (cmake/rtc_isa.cmake compiles the kernels once for each).
 enum class Isa { Sse42 = 0, Avx2 = 1, Avx512 = 2 };
 
 [[nodiscard]] std::string_view isa_name(Isa isa);
+/// Rays per packet of that level's kernels: 4 (2x2 pixels), 8 (4x2) or 16 (4x4).
+[[nodiscard]] int isa_packet_width(Isa isa);
+/// "16-wide packets (4x4 pixels)" and the like, for logs.
+[[nodiscard]] std::string isa_packet_description(Isa isa);
 /// Parses "sse4"/"sse42"/"sse4.2", "avx2", "avx512"; throws rtc::Error on anything else.
 [[nodiscard]] Isa parse_isa(std::string_view name);
 /// Whether this CPU can run kernels of that level.

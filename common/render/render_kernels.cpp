@@ -185,11 +185,11 @@ inline void sample_offset(int s, double& sx, double& sy) {
   sy = std::fmod(0.5 + kA2 * s, 1.0);
 }
 
-// Packets of 2x2 pixels when N = 4, single pixels when N = 1.
+// Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1.
 template <int N>
 void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts) {
-  constexpr int kBlockW = N == 1 ? 1 : 2;
-  constexpr int kBlockH = N == 1 ? 1 : N / 2;
+  constexpr int kBlockW = N == 1 ? 1 : (N == 4 ? 2 : 4);
+  constexpr int kBlockH = N / kBlockW;
   const int spp = std::max(1, fs.settings.spp);
   const bool aovs = !out.depth.empty();
   for (int by = 0; by < h; by += kBlockH) {
@@ -246,7 +246,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
 void render_tile_entry(const FrameState& fs, int x0, int y0, int w, int h, bool packets, Image& out,
                        TileRayCounts& counts) {
   if (packets) {
-    render_tile_impl<4>(fs, x0, y0, w, h, out, counts);
+    render_tile_impl<RTC_ISA_WIDTH>(fs, x0, y0, w, h, out, counts);
   } else {
     render_tile_impl<1>(fs, x0, y0, w, h, out, counts);
   }

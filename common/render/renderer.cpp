@@ -19,6 +19,16 @@ namespace isa_sse42 {
 const RenderKernels& render_kernels_for_isa();
 }
 #endif
+#ifdef RTC_HAVE_ISA_AVX2
+namespace isa_avx2 {
+const RenderKernels& render_kernels_for_isa();
+}
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+namespace isa_avx512 {
+const RenderKernels& render_kernels_for_isa();
+}
+#endif
 
 const RenderKernels& render_kernels(Isa isa) {
   require_cpu_support(isa);
@@ -26,6 +36,14 @@ const RenderKernels& render_kernels(Isa isa) {
 #ifdef RTC_HAVE_ISA_SSE42
     case Isa::Sse42:
       return isa_sse42::render_kernels_for_isa();
+#endif
+#ifdef RTC_HAVE_ISA_AVX2
+    case Isa::Avx2:
+      return isa_avx2::render_kernels_for_isa();
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+    case Isa::Avx512:
+      return isa_avx512::render_kernels_for_isa();
 #endif
     default:
       break;

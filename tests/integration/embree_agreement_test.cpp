@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "common/accel/trace.h"
+#include "common/base/isa.h"
 #include "common/render/renderer.h"
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
@@ -33,28 +34,34 @@ void check_against_embree(const Scene& scene, const std::string& label) {
     }
   }
   std::vector<RayHit> ours(rays.size()), single(rays.size()), theirs(rays.size());
-  // Rows in pairs make 2x2 packets: trace two rows interleaved as blocks.
-  std::vector<RayQuery> blocked;
-  std::vector<std::size_t> index;
-  for (int y = 0; y < fs->height; y += 2) {
-    for (int x = 0; x < fs->width; x += 2) {
-      for (int i = 0; i < 4; ++i) {
-        const int px = std::min(x + i % 2, fs->width - 1), py = std::min(y + i / 2, fs->height - 1);
-        const std::size_t k = static_cast<std::size_t>(py) * static_cast<std::size_t>(fs->width) + static_cast<std::size_t>(px);
-        blocked.push_back(rays[k]);
-        index.push_back(k);
+  trace_kernels().intersect(fs->geometry->tree, rays.data(), single.data(), rays.size(), false);
+  refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), single.data(), rays.size());
+  // Every ISA this CPU runs, with its packets as pixel blocks (2x2, 4x2, 4x4), gives the single
+  // rays' bits.
+  for (const Isa isa : compiled_isas()) {
+    if (!cpu_supports(isa)) continue;
+    const TraceKernels& k = trace_kernels(isa);
+    const int bw = k.packet_width == 4 ? 2 : 4, bh = k.packet_width / bw;
+    std::vector<RayQuery> blocked;
+    std::vector<std::size_t> index;
+    for (int y = 0; y < fs->height; y += bh) {
+      for (int x = 0; x < fs->width; x += bw) {
+        for (int i = 0; i < k.packet_width; ++i) {
+          const int px = std::min(x + i % bw, fs->width - 1), py = std::min(y + i / bw, fs->height - 1);
+          const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(fs->width) + static_cast<std::size_t>(px);
+          blocked.push_back(rays[j]);
+          index.push_back(j);
+        }
       }
     }
-  }
-  std::vector<RayHit> blocked_hits(blocked.size());
-  trace_kernels().intersect(fs->geometry->tree, blocked.data(), blocked_hits.data(), blocked.size(), true);
-  for (std::size_t i = 0; i < blocked.size(); ++i) ours[index[i]] = blocked_hits[i];
-  trace_kernels().intersect(fs->geometry->tree, rays.data(), single.data(), rays.size(), false);
-  refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), ours.data(), rays.size());
-  refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), single.data(), rays.size());
-  for (std::size_t i = 0; i < rays.size(); ++i) {
-    ASSERT_EQ(std::memcmp(&ours[i], &single[i], sizeof(RayHit)), 0)
-        << label << ": packet and single ray differ for " << test::describe_ray(rays[i]);
+    std::vector<RayHit> blocked_hits(blocked.size());
+    k.intersect(fs->geometry->tree, blocked.data(), blocked_hits.data(), blocked.size(), true);
+    for (std::size_t i = 0; i < blocked.size(); ++i) ours[index[i]] = blocked_hits[i];
+    refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), ours.data(), rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(std::memcmp(&ours[i], &single[i], sizeof(RayHit)), 0)
+          << label << ": " << isa_name(isa) << " packet and single ray differ for " << test::describe_ray(rays[i]);
+    }
   }
 
   const test::EmbreeScene embree(fs->geometry->positions, fs->geometry->triangles);

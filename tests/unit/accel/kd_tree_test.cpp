@@ -11,6 +11,7 @@
 
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
+#include "common/base/isa.h"
 #include "tests/support/hit_compare.h"
 
 namespace rtc {
@@ -262,6 +263,37 @@ TEST(KdTraversal, PacketsAndSingleRaysGiveTheSameBits) {
       ASSERT_EQ(oa[i] != 0, a[i].prim != kNoHit) << test::describe_ray(rays[i]);
     }
   }
+}
+
+TEST(KdTraversal, EveryIsaGivesTheSameBits) {
+  const Soup s = sphere_and_grid(32);
+  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  int tried = 0;
+  for (bool coherent : {true, false}) {
+    const std::vector<RayQuery> rays = random_rays(29, 40000, coherent);
+    std::vector<RayHit> ref(rays.size()), got(rays.size());
+    std::vector<std::uint8_t> oref(rays.size()), ogot(rays.size());
+    trace_kernels(Isa::Sse42).intersect(tree, rays.data(), ref.data(), rays.size(), false);
+    trace_kernels(Isa::Sse42).occluded(tree, rays.data(), oref.data(), rays.size(), false);
+    for (const Isa isa : compiled_isas()) {
+      if (!cpu_supports(isa)) {
+        std::printf("EveryIsaGivesTheSameBits: this CPU lacks %s, not tried\n", std::string(isa_name(isa)).c_str());
+        continue;
+      }
+      ++tried;
+      SCOPED_TRACE(std::string(isa_name(isa)) + ", coherent " + std::to_string(coherent));
+      for (bool packets : {true, false}) {
+        trace_kernels(isa).intersect(tree, rays.data(), got.data(), rays.size(), packets);
+        trace_kernels(isa).occluded(tree, rays.data(), ogot.data(), rays.size(), packets);
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+          ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0) << "packets " << packets << " "
+                                                                      << test::describe_ray(rays[i]);
+          ASSERT_EQ(oref[i], ogot[i]) << "packets " << packets << " " << test::describe_ray(rays[i]);
+        }
+      }
+    }
+  }
+  EXPECT_GE(tried, 2);  // SSE4.2 at least, twice
 }
 
 TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include <tbb/global_control.h>
 
@@ -23,10 +24,12 @@ Scene small_default() {
   return s;
 }
 
-std::string render_hash(const Scene& scene, int tile, int threads, bool packets, int frame = 0) {
+std::string render_hash(const Scene& scene, int tile, int threads, bool packets, int frame = 0,
+                        std::optional<Isa> isa = std::nullopt) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
   RenderOptions o;
   o.packets = packets;
+  o.isa = isa;
   Renderer r(scene, o);
   const auto fs = r.prepare(frame);
   return image_hash(r.render_frame(*fs, tile));
@@ -40,6 +43,25 @@ TEST(Renderer, PixelsDoNotDependOnTileSizeThreadsOrPackets) {
       for (bool packets : {true, false}) {
         EXPECT_EQ(render_hash(scene, tile, threads, packets), reference)
             << "tile " << tile << ", threads " << threads << ", packets " << packets;
+      }
+    }
+  }
+}
+
+TEST(Renderer, EveryIsaGivesTheSamePixels) {
+  // The default scene has mirrors (reflection packets whose rays diverge) and shadows; odd
+  // tile sizes leave partial packets at tile edges.
+  const Scene scene = small_default();
+  const std::string reference = render_hash(scene, 64, 1, false, 0, Isa::Sse42);
+  for (const Isa isa : compiled_isas()) {
+    if (!cpu_supports(isa)) {
+      std::printf("EveryIsaGivesTheSamePixels: this CPU lacks %s, not tried\n", std::string(isa_name(isa)).c_str());
+      continue;
+    }
+    for (int tile : {64, 13, 6}) {
+      for (bool packets : {true, false}) {
+        EXPECT_EQ(render_hash(scene, tile, 2, packets, 0, isa), reference)
+            << isa_name(isa) << ", tile " << tile << ", packets " << packets;
       }
     }
   }
