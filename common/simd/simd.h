@@ -235,6 +235,8 @@ struct vfloat<8> {
   vfloat(float f) : v(_mm256_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m256 x) : v(x) {}
   static vfloat load(const float* p) { return vfloat(_mm256_loadu_ps(p)); }
+  /// Lane i = base[index lane i] (indices in floats).
+  static vfloat gather(const float* base, __m256i index) { return vfloat(_mm256_i32gather_ps(base, index, 4)); }
   void store(float* p) const { _mm256_storeu_ps(p, v); }
   [[nodiscard]] float lane(int i) const {
     alignas(32) float tmp[8];
@@ -265,6 +267,7 @@ struct vint<8> {
   vint() = default;
   vint(std::int32_t i) : v(_mm256_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m256i x) : v(x) {}
+  static vint load(const std::int32_t* p) { return vint(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p))); }
   void store(std::int32_t* p) const { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
   [[nodiscard]] std::int32_t lane(int i) const {
     alignas(32) std::int32_t tmp[8];
@@ -329,6 +332,10 @@ struct vfloat<16> {
   vfloat(float f) : v(_mm512_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m512 x) : v(x) {}
   static vfloat load(const float* p) { return vfloat(_mm512_loadu_ps(p)); }
+  /// Lane i = base[index lane i] (indices in floats).
+  static vfloat gather(const float* base, __m512i index) {
+    return vfloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, index, base, 4));
+  }
   void store(float* p) const { _mm512_storeu_ps(p, v); }
   [[nodiscard]] float lane(int i) const {
     alignas(64) float tmp[16];
@@ -359,6 +366,7 @@ struct vint<16> {
   vint() = default;
   vint(std::int32_t i) : v(_mm512_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m512i x) : v(x) {}
+  static vint load(const std::int32_t* p) { return vint(_mm512_loadu_si512(p)); }
   void store(std::int32_t* p) const { _mm512_storeu_si512(p, v); }
   [[nodiscard]] std::int32_t lane(int i) const {
     alignas(64) std::int32_t tmp[16];
