@@ -126,8 +126,13 @@ RayStream shadow_stream(const rtc::FrameState& fs, const RayStream& primary, con
   return s;
 }
 
-// The renderer's rays through Embree: 4-wide packet calls for the packets the renderer makes.
-EmbreeMode packet_mode(std::size_t count) { return count > 1 ? EmbreeMode::Packet4 : EmbreeMode::Single; }
+// The renderer's rays through Embree: for each packet the renderer makes (up to its width, 16
+// with AVX-512), the narrowest Embree packet call that holds its active rays.
+EmbreeMode packet_mode(std::size_t count) {
+  if (count <= 1) return EmbreeMode::Single;
+  if (count <= 4) return EmbreeMode::Packet4;
+  return count <= 8 ? EmbreeMode::Packet8 : EmbreeMode::Packet16;
+}
 void embree_intersect(void* context, const RayQuery* rays, RayHit* hits, std::size_t count) {
   static_cast<const EmbreeScene*>(context)->intersect(rays, hits, count, packet_mode(count));
 }
@@ -202,7 +207,9 @@ int run(int argc, char** argv) {
   app.add_option("--reps", reps, "repetitions; figures are medians")->check(CLI::Range(1, 1000));
   app.add_option("--mode", modes, "primary, shadow, full (repeatable; default: all three)")
       ->check(CLI::IsMember({"primary", "shadow", "full"}));
-  app.add_option("--isa", isa_text, "kernel ISA (default: best available)");
+  app.add_option("--isa", isa_text,
+                 "kernel ISA: sse4, avx2, avx512, or all (every one this CPU runs; the best is the headline figure); "
+                 "default: the best available, or all with --compare-embree");
   app.add_flag("--json", json, "one JSON object per line per mode instead of the table");
   app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
@@ -222,7 +229,15 @@ int run(int argc, char** argv) {
   if (std::filesystem::is_directory(path)) path /= "view.json";
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(thread_count));
-  const rtc::Isa isa = isa_text.empty() ? rtc::best_isa() : rtc::parse_isa(isa_text);
+  std::vector<rtc::Isa> isas;
+  if (isa_text == "all" || (isa_text.empty() && compare)) {
+    for (const rtc::Isa i : rtc::compiled_isas()) {
+      if (rtc::cpu_supports(i)) isas.push_back(i);
+    }
+  } else {
+    isas.push_back(isa_text.empty() ? rtc::best_isa() : rtc::parse_isa(isa_text));
+  }
+  const rtc::Isa isa = isas.back();
   const rtc::TraceKernels& kernels = rtc::trace_kernels(isa);
 
   rtc::Timer load_timer;
@@ -323,6 +338,37 @@ int run(int argc, char** argv) {
                     mode.c_str(), kernels.packet_width, rays / ms_packet / 1e3, ms_packet,
                     static_cast<unsigned long long>(s.real), rays / ms_single / 1e3);
       }
+      // The other ISAs, each with its own packet shape (the same rays, blocked 2x2 / 4x2 / 4x4).
+      nlohmann::json per_isa = nlohmann::json::object();
+      per_isa[std::string(rtc::isa_name(isa))] = {{"packet_width", kernels.packet_width}, {"mrays_per_s", rays / ms_packet / 1e3}};
+      for (const rtc::Isa other : isas) {
+        if (other == isa) continue;
+        const rtc::TraceKernels& k = rtc::trace_kernels(other);
+        const RayStream p2 = primary_stream(*fs, k.packet_width);
+        std::vector<RayHit> h2(p2.rays.size());
+        for_chunks(p2, [&](std::size_t first, std::size_t n) {
+          k.intersect(fs->geometry->tree, p2.rays.data() + first, h2.data() + first, n, true);
+        });
+        const RayStream s2 = shadow ? shadow_stream(*fs, p2, h2) : p2;
+        std::vector<std::uint8_t> occ2(s2.rays.size());
+        const double ms2 = time_median_ms(reps, [&] {
+          for_chunks(s2, [&](std::size_t first, std::size_t n) {
+            if (shadow) {
+              k.occluded(fs->geometry->tree, s2.rays.data() + first, occ2.data() + first, n, true);
+            } else {
+              k.intersect(fs->geometry->tree, s2.rays.data() + first, h2.data() + first, n, true);
+              rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, s2.rays.data() + first, h2.data() + first, n);
+            }
+          });
+        });
+        const double m2 = static_cast<double>(s2.real) / ms2 / 1e3;
+        per_isa[std::string(rtc::isa_name(other))] = {{"packet_width", k.packet_width}, {"mrays_per_s", m2}};
+        if (!json) {
+          std::printf("          rtc %s %d-wide packets: %8.2f M rays/s (%.1f ms)\n", std::string(rtc::isa_name(other)).c_str(),
+                      k.packet_width, m2, ms2);
+        }
+      }
+      out["isas"] = per_isa;
       if (compare) {
         nlohmann::json emb = nlohmann::json::object();
         double best = 0.0;
@@ -436,9 +482,9 @@ int run(int argc, char** argv) {
         out["ratio_vs_embree_frame"] = ems / ms;
         out["embree_frame_pixels_differing"] = frac;
         if (!json) {
-          std::printf("          embree-4 renderer, same shading: %.1f ms (%llu rays); rtc is %.2fx its speed; "
-                      "%.4f%% of pixels differ by more than 1/255\n",
-                      ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, 100.0 * frac);
+          std::printf("          embree renderer (same shading, Embree packet calls of up to %d rays): %.1f ms (%llu rays); "
+                      "rtc is %.2fx its speed; %.4f%% of pixels differ by more than 1/255\n",
+                      kernels.packet_width, ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, 100.0 * frac);
         }
       }
     }
