@@ -238,7 +238,8 @@ inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
 template <int N, bool kOcclusion>
 inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
   const RayPacket<1> r = lane_ray(ray, i);
-  HitPacket<1> h{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
+  HitPacket<1> h{0.0f, 0.0f, 0.0f, -1};  // occlusion queries leave `hit` alone
+  if constexpr (!kOcclusion) h = HitPacket<1>{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
   vbool<1> occ(occluded.lane(i));
   traverse_coherent<1, kOcclusion>(tree, r, vbool<1>(true), h, occ);
   if constexpr (kOcclusion) {
@@ -299,7 +300,7 @@ inline void intersect(const KdTree& tree, const RayPacket<N>& ray, vbool<N> acti
 template <int N>
 inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active) {
   vbool<N> occ(false);
-  HitPacket<N> unused;
+  HitPacket<N> unused;  // not read by occlusion queries
   trace_packet<N, true>(tree, ray, active, unused, occ);
   return occ;
 }

@@ -30,6 +30,12 @@ template <int N>
 struct vbool;
 
 // ---------------------------------------------------------------------------------------
+// Vector types are trivially default-constructible, like the raw __m128/__m256/__m512 (a
+// default-constructed value is unspecified until assigned). Zeroing default constructors were
+// called out of line from the implicit constructors of PacketVec3/RayPacket/HitPacket, which
+// GCC generates without the region's target: every packet paid calls and vzeroupper.
+
+// ---------------------------------------------------------------------------------------
 // N = 1: the scalar reference.
 
 template <>
@@ -101,7 +107,7 @@ inline vbool<1> sign_bit(vfloat<1> a) {
 
 template <>
 struct vbool<4> {
-  __m128 m = _mm_setzero_ps();
+  __m128 m;
   vbool() = default;
   explicit vbool(__m128 x) : m(x) {}
   explicit vbool(bool b) : m(_mm_castsi128_ps(_mm_set1_epi32(b ? -1 : 0))) {}
@@ -122,7 +128,7 @@ struct vbool<4> {
 
 template <>
 struct vfloat<4> {
-  __m128 v = _mm_setzero_ps();
+  __m128 v;
   vfloat() = default;
   vfloat(float f) : v(_mm_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m128 x) : v(x) {}
@@ -153,7 +159,7 @@ struct vfloat<4> {
 
 template <>
 struct vint<4> {
-  __m128i v = _mm_setzero_si128();
+  __m128i v;
   vint() = default;
   vint(std::int32_t i) : v(_mm_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m128i x) : v(x) {}
@@ -208,7 +214,7 @@ inline vbool<4> sign_bit(vfloat<4> a) {
 
 template <>
 struct vbool<8> {
-  __m256 m = _mm256_setzero_ps();
+  __m256 m;
   vbool() = default;
   explicit vbool(__m256 x) : m(x) {}
   explicit vbool(bool b) : m(_mm256_castsi256_ps(_mm256_set1_epi32(b ? -1 : 0))) {}
@@ -230,7 +236,7 @@ struct vbool<8> {
 
 template <>
 struct vfloat<8> {
-  __m256 v = _mm256_setzero_ps();
+  __m256 v;
   vfloat() = default;
   vfloat(float f) : v(_mm256_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m256 x) : v(x) {}
@@ -263,7 +269,7 @@ struct vfloat<8> {
 
 template <>
 struct vint<8> {
-  __m256i v = _mm256_setzero_si256();
+  __m256i v;
   vint() = default;
   vint(std::int32_t i) : v(_mm256_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m256i x) : v(x) {}
@@ -311,7 +317,7 @@ inline vbool<8> sign_bit(vfloat<8> a) {
 
 template <>
 struct vbool<16> {
-  __mmask16 m = 0;
+  __mmask16 m;
   vbool() = default;
   explicit vbool(__mmask16 x) : m(x) {}
   explicit vbool(bool b) : m(b ? static_cast<__mmask16>(0xFFFF) : static_cast<__mmask16>(0)) {}
@@ -327,7 +333,7 @@ struct vbool<16> {
 
 template <>
 struct vfloat<16> {
-  __m512 v = _mm512_setzero_ps();
+  __m512 v;
   vfloat() = default;
   vfloat(float f) : v(_mm512_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m512 x) : v(x) {}
@@ -362,7 +368,7 @@ struct vfloat<16> {
 
 template <>
 struct vint<16> {
-  __m512i v = _mm512_setzero_si512();
+  __m512i v;
   vint() = default;
   vint(std::int32_t i) : v(_mm512_set1_epi32(i)) {}  // NOLINT: broadcasting is the point
   explicit vint(__m512i x) : v(x) {}
