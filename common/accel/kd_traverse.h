@@ -170,12 +170,14 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         if (none(active)) break;
       }
     }
-    // A lane is finished once it is occluded, or its closest hit lies within this leaf's
-    // segment: every later leaf starts beyond it. Empty leaves count too.
+    // A lane is finished once it is occluded, or its closest hit lies strictly inside this
+    // leaf's segment: every later leaf starts beyond it. A hit exactly on the far boundary
+    // goes on into the next leaf, where a triangle at the same t may win the tie (higher id):
+    // that keeps the answer independent of where the tree put its planes. Empty leaves count.
     if constexpr (kOcclusion) {
       done |= occluded;
     } else {
-      done |= active & (hit.t <= far);
+      done |= active & (hit.t < far);
     }
 
     for (;;) {
