@@ -161,9 +161,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
 
     const std::uint32_t* leaf_refs = refs + node.prim_offset();
     for (std::uint32_t i = 0; i < node.count; ++i) {
-      const std::uint32_t prim = leaf_refs[i];
-      intersect_triangle<N, kOcclusion>(accel[prim], static_cast<std::int32_t>(prim), ray, active, hit,
-                                        occluded);
+      const TriAccel& acc = accel[leaf_refs[i]];
+      intersect_triangle<N, kOcclusion>(acc, static_cast<std::int32_t>(acc.id), ray, active, hit, occluded);
       if constexpr (kOcclusion) {
         // A shadow ray stops at its first hit: occluded lanes test nothing more.
         active &= !occluded;

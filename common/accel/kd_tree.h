@@ -38,7 +38,7 @@ struct alignas(16) TriAccel {
   float n_u = 0, n_v = 0, n_d = 0;
   std::uint32_t k = 3;  ///< 3 marks a degenerate triangle that never hits
   float b_nu = 0, b_nv = 0, b_d = 0;
-  std::uint32_t pad0 = 0;
+  std::uint32_t id = 0;  ///< the triangle's index in the arrays given to KdTree::build
   float c_nu = 0, c_nv = 0, c_d = 0;
   std::uint32_t pad1 = 0;
 };
@@ -82,8 +82,13 @@ class KdTree {
                       const KdBuildOptions& options = {});
 
   [[nodiscard]] const std::vector<KdNode>& nodes() const { return nodes_; }
+  /// Leaf references: indices into tri_accel() (not triangle ids; TriAccel::id gives those).
   [[nodiscard]] const std::vector<std::uint32_t>& prim_refs() const { return prim_refs_; }
+  /// The 48-byte records in the order the leaves first reference them (depth first), so that
+  /// a leaf's triangles sit together in memory; unreferenced (degenerate) ones come last.
   [[nodiscard]] const std::vector<TriAccel>& tri_accel() const { return tri_accel_; }
+  /// The record of triangle `id`.
+  [[nodiscard]] const TriAccel& tri_accel_of(std::uint32_t id) const { return tri_accel_[accel_index_[id]]; }
   /// Scene bounds, slightly enlarged so rays that graze the outermost triangles still enter.
   [[nodiscard]] const Aabb& bounds() const { return bounds_; }
   [[nodiscard]] const KdBuildStats& stats() const { return stats_; }
@@ -93,6 +98,7 @@ class KdTree {
   std::vector<KdNode> nodes_;
   std::vector<std::uint32_t> prim_refs_;
   std::vector<TriAccel> tri_accel_;
+  std::vector<std::uint32_t> accel_index_;  ///< triangle id -> index into tri_accel_
   Aabb bounds_;
   KdBuildStats stats_;
 };

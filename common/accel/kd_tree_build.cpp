@@ -731,6 +731,51 @@ std::string KdBuildStats::to_string() const {
       sah_cost);
 }
 
+namespace {
+
+// Stores the triangle records in the order the leaves first reference them, walking the tree
+// depth first (near child first, as the node array is laid out), and rewrites the references
+// to point at the new places. A leaf's triangles then share cache lines instead of being
+// scattered over the whole array; each record keeps its triangle id (TriAccel::id) for hits
+// and tie-breaking, so results do not change. Deterministic; O(nodes + references).
+void order_records_by_leaves(const std::vector<KdNode>& nodes, std::vector<std::uint32_t>& refs,
+                             std::vector<TriAccel>& records, std::vector<std::uint32_t>& index_of) {
+  constexpr std::uint32_t kUnplaced = 0xFFFFFFFFu;
+  const std::size_t n = records.size();
+  for (std::size_t i = 0; i < n; ++i) records[i].id = static_cast<std::uint32_t>(i);
+  index_of.assign(n, kUnplaced);
+  std::vector<TriAccel> ordered;
+  ordered.reserve(n);
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const std::uint32_t at = stack.back();
+    stack.pop_back();
+    const KdNode& node = nodes[at];
+    if (!node.is_leaf()) {
+      stack.push_back(node.left() + 1);
+      stack.push_back(node.left());
+      continue;
+    }
+    for (std::uint32_t i = 0; i < node.count; ++i) {
+      const std::uint32_t ref = refs[node.prim_offset() + i];
+      if (index_of[ref] == kUnplaced) {
+        index_of[ref] = static_cast<std::uint32_t>(ordered.size());
+        ordered.push_back(records[ref]);
+      }
+    }
+  }
+  for (std::uint32_t& ref : refs) ref = index_of[ref];
+  for (std::size_t i = 0; i < n; ++i) {
+    if (index_of[i] == kUnplaced) {
+      index_of[i] = static_cast<std::uint32_t>(ordered.size());
+      ordered.push_back(records[i]);
+    }
+  }
+  records.swap(ordered);
+}
+
+}  // namespace
+
 KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
                      const KdBuildOptions& options) {
   Timer timer;
@@ -771,6 +816,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t count = tris.size();
   tree.stats_.degenerate = triangles.size() - count;
   if (count == 0) {
+    tree.accel_index_.resize(triangles.size());
+    for (std::size_t i = 0; i < triangles.size(); ++i) tree.accel_index_[i] = static_cast<std::uint32_t>(i);
     tree.stats_.build_ms = timer.elapsed_ms();
     return tree;  // empty tree: every ray misses
   }
@@ -795,6 +842,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const float root_area = root.area();
   tree.stats_.sah_cost = root_area > 0.0f ? cost_area / static_cast<double>(root_area) : 0.0;
   top.reset();
+
+  order_records_by_leaves(tree.nodes_, tree.prim_refs_, tree.tri_accel_, tree.accel_index_);
 
   tree.stats_.nodes = tree.nodes_.size();
   tree.stats_.prim_refs = tree.prim_refs_.size();

@@ -85,7 +85,7 @@ Aabb tri_box(const Soup& s, std::uint32_t t) {
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
   const std::uint32_t* r = tree.prim_refs().data() + leaf.prim_offset();
-  return std::find(r, r + leaf.count, tri) != r + leaf.count;
+  return std::any_of(r, r + leaf.count, [&](std::uint32_t ref) { return tree.tri_accel()[ref].id == tri; });
 }
 
 // Every triangle is referenced by every leaf its bounds overlap with positive extent along
@@ -153,7 +153,8 @@ TEST(KdTree, DegenerateTrianglesAreSkipped) {
   s.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 0, 2}};  // the last two have zero area
   const KdTree tree = KdTree::build(s.positions, s.triangles);
   EXPECT_EQ(tree.stats().degenerate, 2u);
-  EXPECT_EQ(tree.tri_accel()[1].k, 3u);
+  EXPECT_EQ(tree.tri_accel_of(1).k, 3u);
+  EXPECT_EQ(tree.tri_accel_of(1).id, 1u);
 }
 
 TEST(KdTree, EmptyInputGivesATreeEveryRayMisses) {
