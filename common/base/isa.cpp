@@ -31,7 +31,7 @@ int isa_packet_width(Isa isa) {
 
 std::string isa_packet_description(Isa isa) {
   const int w = isa_packet_width(isa);
-  const int bw = w == 4 ? 2 : 4;
+  const int bw = packet_block_width(w);
   return std::to_string(w) + "-wide packets (" + std::to_string(bw) + "x" + std::to_string(w / bw) + " pixels)";
 }
 

@@ -188,7 +188,7 @@ inline void sample_offset(int s, double& sx, double& sy) {
 // Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1.
 template <int N>
 void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts) {
-  constexpr int kBlockW = N == 1 ? 1 : (N == 4 ? 2 : 4);
+  constexpr int kBlockW = packet_block_width(N);
   constexpr int kBlockH = N / kBlockW;
   const int spp = std::max(1, fs.settings.spp);
   const bool aovs = !out.depth.empty();

@@ -49,20 +49,10 @@ struct RayStream {
   std::uint64_t real = 0;
 };
 
-void block_shape(int width, int& bw, int& bh) {
-  switch (width) {
-    case 4: bw = 2; bh = 2; return;
-    case 8: bw = 4; bh = 2; return;
-    case 16: bw = 4; bh = 4; return;
-    default: bw = 1; bh = 1; return;
-  }
-}
-
 RayStream primary_stream(const rtc::FrameState& fs, int width) {
   RayStream s;
   s.width = width;
-  int bw = 1, bh = 1;
-  block_shape(width, bw, bh);
+  const int bw = rtc::packet_block_width(width), bh = width / bw;
   for (int ty = 0; ty < fs.height; ty += kTile) {
     for (int tx = 0; tx < fs.width; tx += kTile) {
       s.chunk_begin.push_back(s.rays.size());
@@ -168,6 +158,24 @@ template <typename Fn>
 void for_chunks(const RayStream& s, Fn&& fn) {
   tbb::parallel_for(std::size_t{0}, s.chunk_begin.size() - 1, [&](std::size_t c) {
     fn(s.chunk_begin[c], s.chunk_begin[c + 1] - s.chunk_begin[c]);
+  });
+}
+
+// One pass of a stream through kernels `k`: occlusion into `occ`, or closest hits into `hits`
+// with their distances refined (rtc reports refined distances, so their cost is part of the
+// figure).
+void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const RayStream& s, bool shadow,
+                  bool packets, std::vector<RayHit>& hits, std::vector<std::uint8_t>& occ) {
+  hits.resize(s.rays.size());
+  occ.resize(s.rays.size());
+  for_chunks(s, [&](std::size_t first, std::size_t n) {
+    if (shadow) {
+      k.occluded(fs.geometry->tree, s.rays.data() + first, occ.data() + first, n, packets);
+    } else {
+      k.intersect(fs.geometry->tree, s.rays.data() + first, hits.data() + first, n, packets);
+      rtc::refine_hit_distances(fs.geometry->positions, fs.geometry->triangles, s.rays.data() + first,
+                                hits.data() + first, n);
+    }
   });
 }
 
@@ -309,14 +317,9 @@ int run(int argc, char** argv) {
 
   // Primary rays are needed by the shadow mode too.
   const RayStream primary = primary_stream(*fs, kernels.packet_width);
-  std::vector<RayHit> hits(primary.rays.size());
-  auto trace_primary = [&](bool packets) {
-    for_chunks(primary, [&](std::size_t first, std::size_t n) {
-      kernels.intersect(fs->geometry->tree, primary.rays.data() + first, hits.data() + first, n, packets);
-      rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, primary.rays.data() + first, hits.data() + first, n);
-    });
-  };
-  trace_primary(true);
+  std::vector<RayHit> hits;
+  std::vector<std::uint8_t> unused_occ;
+  trace_stream(kernels, *fs, primary, false, true, hits, unused_occ);
   const std::vector<RayHit> our_pixels = by_pixel(primary, hits, pixels);
   if (!dump_prefix.empty()) write_dump(dump_prefix, *fs, our_pixels);
 
@@ -327,19 +330,9 @@ int run(int argc, char** argv) {
       const bool shadow = mode == "shadow";
       const RayStream shadows = shadow ? shadow_stream(*fs, primary, hits) : RayStream{};
       const RayStream& s = shadow ? shadows : primary;
-      std::vector<std::uint8_t> occ(s.rays.size());
-      std::vector<RayHit> scratch(s.rays.size());
-      auto ours = [&](bool packets) {
-        for_chunks(s, [&](std::size_t first, std::size_t n) {
-          if (shadow) {
-            kernels.occluded(fs->geometry->tree, s.rays.data() + first, occ.data() + first, n, packets);
-          } else {
-            // rtc reports refined distances, so their cost is part of the figure.
-            kernels.intersect(fs->geometry->tree, s.rays.data() + first, scratch.data() + first, n, packets);
-            rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, s.rays.data() + first, scratch.data() + first, n);
-          }
-        });
-      };
+      std::vector<std::uint8_t> occ;
+      std::vector<RayHit> scratch;
+      auto ours = [&](bool packets) { trace_stream(kernels, *fs, s, shadow, packets, scratch, occ); };
       const double ms_packet = time_median_ms(reps, [&] { ours(true); });
       const double ms_single = time_median_ms(reps, [&] { ours(false); });
       const double rays = static_cast<double>(s.real);
@@ -359,22 +352,11 @@ int run(int argc, char** argv) {
         if (other == isa) continue;
         const rtc::TraceKernels& k = rtc::trace_kernels(other);
         const RayStream p2 = primary_stream(*fs, k.packet_width);
-        std::vector<RayHit> h2(p2.rays.size());
-        for_chunks(p2, [&](std::size_t first, std::size_t n) {
-          k.intersect(fs->geometry->tree, p2.rays.data() + first, h2.data() + first, n, true);
-        });
+        std::vector<RayHit> h2;
+        std::vector<std::uint8_t> occ2;
+        trace_stream(k, *fs, p2, false, true, h2, occ2);
         const RayStream s2 = shadow ? shadow_stream(*fs, p2, h2) : p2;
-        std::vector<std::uint8_t> occ2(s2.rays.size());
-        const double ms2 = time_median_ms(reps, [&] {
-          for_chunks(s2, [&](std::size_t first, std::size_t n) {
-            if (shadow) {
-              k.occluded(fs->geometry->tree, s2.rays.data() + first, occ2.data() + first, n, true);
-            } else {
-              k.intersect(fs->geometry->tree, s2.rays.data() + first, h2.data() + first, n, true);
-              rtc::refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, s2.rays.data() + first, h2.data() + first, n);
-            }
-          });
-        });
+        const double ms2 = time_median_ms(reps, [&] { trace_stream(k, *fs, s2, shadow, true, h2, occ2); });
         const double m2 = static_cast<double>(s2.real) / ms2 / 1e3;
         per_isa[std::string(rtc::isa_name(other))] = {{"packet_width", k.packet_width}, {"mrays_per_s", m2}};
         if (!json) {

@@ -41,7 +41,7 @@ void check_against_embree(const Scene& scene, const std::string& label) {
   for (const Isa isa : compiled_isas()) {
     if (!cpu_supports(isa)) continue;
     const TraceKernels& k = trace_kernels(isa);
-    const int bw = k.packet_width == 4 ? 2 : 4, bh = k.packet_width / bw;
+    const int bw = packet_block_width(k.packet_width), bh = k.packet_width / bw;
     std::vector<RayQuery> blocked;
     std::vector<std::size_t> index;
     for (int y = 0; y < fs->height; y += bh) {
