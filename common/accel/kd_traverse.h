@@ -262,32 +262,28 @@ template <int N, bool kOcclusion>
 void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
                   vbool<N>& occluded) {
   if (tree.empty() || none(active)) return;
-  if constexpr (N > 1) {
-    const unsigned lanes = bits(active);
-    const unsigned sx = bits(sign_bit(ray.dir[0])) & lanes;
-    const unsigned sy = bits(sign_bit(ray.dir[1])) & lanes;
-    const unsigned sz = bits(sign_bit(ray.dir[2])) & lanes;
-    const bool coherent = (sx == 0 || sx == lanes) && (sy == 0 || sy == lanes) && (sz == 0 || sz == lanes);
-    if (!coherent) {
-      unsigned left = lanes;
-      while (left != 0) {
-        const int first = __builtin_ctz(left);
-        // Lanes in the same octant as the first remaining one.
-        const unsigned mx = ((sx >> first) & 1u) ? sx : ~sx;
-        const unsigned my = ((sy >> first) & 1u) ? sy : ~sy;
-        const unsigned mz = ((sz >> first) & 1u) ? sz : ~sz;
-        const unsigned group = left & mx & my & mz;
-        left &= ~group;
-        if ((group & (group - 1)) == 0) {
-          trace_lane<N, kOcclusion>(tree, ray, first, hit, occluded);
-        } else {
-          traverse_coherent<N, kOcclusion>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
-        }
+  if constexpr (N == 1) {
+    traverse_coherent<N, kOcclusion>(tree, ray, active, hit, occluded);
+  } else {
+    const unsigned sx = bits(sign_bit(ray.dir[0]));
+    const unsigned sy = bits(sign_bit(ray.dir[1]));
+    const unsigned sz = bits(sign_bit(ray.dir[2]));
+    unsigned left = bits(active);
+    while (left != 0) {  // once for a coherent packet
+      const int first = __builtin_ctz(left);
+      // Lanes in the same octant as the first remaining one.
+      const unsigned mx = ((sx >> first) & 1u) ? sx : ~sx;
+      const unsigned my = ((sy >> first) & 1u) ? sy : ~sy;
+      const unsigned mz = ((sz >> first) & 1u) ? sz : ~sz;
+      const unsigned group = left & mx & my & mz;
+      left &= ~group;
+      if ((group & (group - 1)) == 0) {
+        trace_lane<N, kOcclusion>(tree, ray, first, hit, occluded);
+      } else {
+        traverse_coherent<N, kOcclusion>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
       }
-      return;
     }
   }
-  traverse_coherent<N, kOcclusion>(tree, ray, active, hit, occluded);
 }
 
 /// Closest hits; hit must come in with t = t_max and prim = -1 for the active lanes.
