@@ -55,8 +55,18 @@ void Connection::start(MessageHandler on_message, CloseHandler on_close) {
 void Connection::read_header() {
   if (closed_) return;
   auto self = shared_from_this();
+  reading_ = true;
   asio::async_read(socket_, asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
+    reading_ = false;
     if (closed_) return;
+    if (closing_after_flush_) {
+      if (ec) {
+        finish(pending_close_reason_);
+      } else {
+        drain();
+      }
+      return;
+    }
     if (ec) {
       finish(ec == asio::error::eof ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
       return;
@@ -73,7 +83,6 @@ void Connection::read_header() {
              version_mismatch ? protocol::ErrorCode::Version : protocol::ErrorCode::Protocol, header.error);
       return;
     }
-    if (closing_after_flush_) return;  // rejected or saying goodbye: read nothing more
     if (header.header.payload_length > max_payload_) {
       const std::string why = protocol::type_name(header.header.type) + " payload of " +
                               std::to_string(header.header.payload_length) + " bytes exceeds the " +
@@ -88,8 +97,18 @@ void Connection::read_header() {
 void Connection::read_payload(protocol::Header header) {
   payload_.resize(header.payload_length);
   auto self = shared_from_this();
+  reading_ = true;
   asio::async_read(socket_, asio::buffer(payload_), [this, self, header](const asio::error_code& ec, std::size_t) {
-    if (closed_ || closing_after_flush_) return;
+    reading_ = false;
+    if (closed_) return;
+    if (closing_after_flush_) {
+      if (ec) {
+        finish(pending_close_reason_);
+      } else {
+        drain();
+      }
+      return;
+    }
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +
@@ -131,9 +150,13 @@ void Connection::write_next() {
   if (queue_.empty()) {
     writing_ = false;
     if (closing_after_flush_) {
+      // Our side is done: send FIN, but close only when the peer closes (or the timer fires).
+      // Closing with the peer's bytes unread would send it a reset, which can make it fail a
+      // write before it reads our last message (a worker then took the master's Goodbye for a
+      // lost connection and went on retrying).
       asio::error_code ec;
       socket_.shutdown(asio::ip::tcp::socket::shutdown_send, ec);
-      finish(pending_close_reason_);
+      if (!reading_) drain();
       return;
     }
     if (on_drained_) on_drained_();
@@ -170,14 +193,26 @@ void Connection::close_after_flush(const std::string& reason, std::chrono::milli
   if (closed_ || closing_after_flush_) return;
   closing_after_flush_ = true;
   pending_close_reason_ = reason;
-  if (!writing_) {
-    write_next();
-    return;
-  }
   flush_timer_ = std::make_unique<asio::steady_timer>(socket_.get_executor(), timeout);
   auto self = shared_from_this();
   flush_timer_->async_wait([this, self](const asio::error_code& ec) {
-    if (!ec) finish(pending_close_reason_ + " (peer did not read the last bytes in time)");
+    if (!ec) finish(pending_close_reason_ + " (peer did not read the last bytes or close in time)");
+  });
+  if (!writing_) write_next();
+}
+
+void Connection::drain() {
+  // Reads and discards what the peer still sends until it closes; bounded by the flush timer.
+  auto self = shared_from_this();
+  reading_ = true;
+  socket_.async_read_some(asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
+    reading_ = false;
+    if (closed_) return;
+    if (ec) {
+      finish(pending_close_reason_);
+    } else {
+      drain();
+    }
   });
 }
 

@@ -56,8 +56,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
   /// Closes now (pending writes are dropped) and reports `reason` to the close handler.
   void close(const std::string& reason);
-  /// Sends what is queued, then closes; `reason` goes to the close handler. Bounded: the socket
-  /// is closed anyway after `timeout`.
+  /// Sends what is queued, shuts down the sending side, then reads and discards until the peer
+  /// closes (a graceful close: no reset that could destroy our last message before the peer
+  /// reads it); `reason` goes to the close handler. Nothing the peer sends meanwhile is
+  /// handled. Bounded: the socket is closed anyway after `timeout`.
   void close_after_flush(const std::string& reason,
                          std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
 
@@ -87,6 +89,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void read_header();
   void read_payload(protocol::Header header);
   void write_next();
+  void drain();
   void finish(const std::string& reason);
 
   asio::ip::tcp::socket socket_;
@@ -101,6 +104,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::size_t max_queued_bytes_ = 256u << 20;
   std::uint32_t max_payload_ = protocol::kMaxPayload;
   bool writing_ = false;
+  bool reading_ = false;  ///< an async read is outstanding
   bool closed_ = false;
   bool closing_after_flush_ = false;
   std::string pending_close_reason_;
