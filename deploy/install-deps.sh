@@ -9,7 +9,7 @@ packages=(
   libassimp-dev libtinyobjloader-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev iproute2 iperf3
-  libembree-dev python3
+  libembree-dev python3 gnuplot-nox
 )
 
 missing=()

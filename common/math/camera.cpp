@@ -29,12 +29,16 @@ CameraRays::CameraRays(const Camera& camera, int width, int height) : width_(wid
   h_ = det_tan(camera.vfov_deg * (3.14159265358979323846 / 180.0) / 2.0);
 }
 
-Ray CameraRays::ray(int x, int y, double sub_x, double sub_y) const {
+RayD CameraRays::ray_double(int x, int y, double sub_x, double sub_y) const {
   const double w = width_, hgt = height_;
   const double sx = (2.0 * (x + sub_x) / w - 1.0) * h_ * (w / hgt);
   const double sy = (1.0 - 2.0 * (y + sub_y) / hgt) * h_;
-  const glm::dvec3 dir = glm::normalize(forward_ + sx * right_ + sy * up2_);
-  return Ray{glm::vec3(eye_), glm::vec3(dir)};
+  return RayD{eye_, glm::normalize(forward_ + sx * right_ + sy * up2_)};
+}
+
+Ray CameraRays::ray(int x, int y, double sub_x, double sub_y) const {
+  const RayD r = ray_double(x, y, sub_x, sub_y);
+  return Ray{glm::vec3(r.origin), glm::vec3(r.dir)};
 }
 
 }  // namespace rtc

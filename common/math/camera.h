@@ -21,6 +21,12 @@ struct Ray {
   glm::vec3 dir{0.0f, 0.0f, 1.0f};
 };
 
+/// A ray in double precision (the reference renderer's).
+struct RayD {
+  glm::dvec3 origin{0.0};
+  glm::dvec3 dir{0.0, 0.0, 1.0};
+};
+
 /// Precomputed camera frame for a W x H image. Rays follow CAMERA.md exactly; the frame and
 /// each ray are computed in double and rounded once to float, so every tracer (rtc, the
 /// Embree oracle) that uses this class gets bit-identical rays. Thread-safe after construction.
@@ -33,6 +39,8 @@ class CameraRays {
   /// Ray through image position (x + sub_x, y + sub_y), row 0 at the top; sub = 0.5 is the
   /// pixel centre of CAMERA.md.
   [[nodiscard]] Ray ray(int x, int y, double sub_x = 0.5, double sub_y = 0.5) const;
+  /// The same ray before rounding to float (unit direction in double).
+  [[nodiscard]] RayD ray_double(int x, int y, double sub_x = 0.5, double sub_y = 0.5) const;
 
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }

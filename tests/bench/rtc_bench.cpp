@@ -29,6 +29,7 @@
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
+#include "tests/bench/sweep.h"
 
 namespace {
 
@@ -222,7 +223,8 @@ int run(int argc, char** argv) {
   std::vector<std::string> modes;
   std::string isa_text, dump_prefix, log_level = "warn";
   bool json = false, compare = false;
-  app.add_option("scene", scene_path, "a view.json / scene file / mesh, or a folder holding view.json")->required();
+  app.add_option("scene", scene_path,
+                 "a view.json / scene file / mesh, or a folder holding view.json; omitted: the built-in default scene");
   app.add_option("--threads", threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--reps", reps, "repetitions; figures are medians")->check(CLI::Range(1, 1000));
   app.add_option("--mode", modes, "primary, shadow, full (repeatable; default: all three)")
@@ -243,12 +245,28 @@ int run(int argc, char** argv) {
   app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
       ->check(CLI::Range(0, 60));
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
+  std::string sweep_dir;
+  bool sweep_quick = false, no_embree_check = false;
+  int width = 0, height = 0;
+  app.add_option("--sweep", sweep_dir,
+                 "run time against error: render with every setting that trades time for accuracy, measure each "
+                 "against a double-precision reference, write DIR/sweep.csv, DIR/reference.exr and DIR/reference.json "
+                 "(plot with tests/bench/plot_sweep.py)");
+  app.add_flag("--sweep-quick", sweep_quick, "with --sweep: a few settings per group only");
+  app.add_flag("--no-embree-check", no_embree_check, "with --sweep: skip the Embree cross-check of the reference");
+  app.add_option("--width", width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
+  app.add_option("--height", height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
 
   std::filesystem::path path(scene_path);
-  if (std::filesystem::is_directory(path)) path /= "view.json";
+  if (!scene_path.empty() && std::filesystem::is_directory(path)) path /= "view.json";
+  auto load = [&] {
+    rtc::Scene sc = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(path);
+    if (width > 0 || height > 0) rtc::set_resolution(sc, width > 0 ? width : sc.width, height > 0 ? height : sc.height);
+    return sc;
+  };
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(thread_count));
   std::vector<rtc::Isa> isas;
@@ -262,8 +280,22 @@ int run(int argc, char** argv) {
   const rtc::Isa isa = isas.back();
   const rtc::TraceKernels& kernels = rtc::trace_kernels(isa);
 
+  if (!sweep_dir.empty()) {
+    rtc::bench::SweepOptions so;
+    so.out_dir = sweep_dir;
+    so.reps = app.count("--reps") > 0 ? reps : 3;
+    so.quick = sweep_quick;
+    so.embree_check = !no_embree_check;
+    const int bad = rtc::bench::run_sweep(load(), so);
+    if (bad > 0) {
+      std::fprintf(stderr, "rtc-bench: error: %d sweep outputs held NaN or Inf values (see the table)\n", bad);
+      return 3;
+    }
+    return 0;
+  }
+
   rtc::Timer load_timer;
-  rtc::Scene scene = rtc::load_scene(path);
+  rtc::Scene scene = load();
   const double load_ms = load_timer.elapsed_ms();
   const std::string name = scene.name;
 
