@@ -243,6 +243,9 @@ int run(int argc, char** argv) {
   app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
       ->check(CLI::Range(0, 60));
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
+  std::string intersector;
+  app.add_option("--intersector", intersector, "ray/triangle test: wald or watertight (default: the scene's, normally wald)")
+      ->check(CLI::IsMember({"wald", "watertight"}));
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
@@ -265,6 +268,9 @@ int run(int argc, char** argv) {
   rtc::Timer load_timer;
   rtc::Scene scene = rtc::load_scene(path);
   const double load_ms = load_timer.elapsed_ms();
+  if (!intersector.empty()) {
+    scene.settings.intersector = intersector == "watertight" ? rtc::Intersector::Watertight : rtc::Intersector::Wald;
+  }
   const std::string name = scene.name;
 
   // Build time: median over the reps, like every other figure.
@@ -287,6 +293,7 @@ int run(int argc, char** argv) {
   nlohmann::json base = {{"scene", name},
                          {"threads", thread_count},
                          {"isa", std::string(rtc::isa_name(isa))},
+                         {"intersector", rtc::intersector_name(scene.settings.intersector)},
                          {"width", fs->width},
                          {"height", fs->height},
                          {"triangles", kd.triangles},
@@ -305,9 +312,9 @@ int run(int argc, char** argv) {
     base["embree_build_hq_ms"] = embree_build_hq_ms;
   }
   if (!json) {
-    std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s; load %.0f ms\n", name.c_str(),
+    std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s, intersector %s; load %.0f ms\n", name.c_str(),
                 static_cast<unsigned long long>(kd.triangles), fs->width, fs->height, thread_count,
-                std::string(rtc::isa_name(isa)).c_str(), load_ms);
+                std::string(rtc::isa_name(isa)).c_str(), rtc::intersector_name(scene.settings.intersector), load_ms);
     std::printf("  build: rtc kd-tree %.1f ms (%s)\n", build_ms, kd.to_string().c_str());
     if (compare) {
       std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality)\n", embree_build_ms,
