@@ -90,7 +90,7 @@ struct WaldTest {
   WaldTest(const RayPacket<N>& /*ray*/, vbool<N> /*active*/) {}
   template <bool kOcclusion>
   void intersect(const TriRecord& rec, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
-                  vbool<N>& occluded) const {
+                 vbool<N>& occluded) const {
     intersect_triangle<N, kOcclusion>(rec.wald, static_cast<std::int32_t>(rec.wald.id), ray, active, hit, occluded);
   }
 };
@@ -100,6 +100,9 @@ template <int N>
 inline vfloat<N> abs_value(vfloat<N> x) {
   return select(sign_bit(x), -x, x);
 }
+
+/// Coordinate k (0, 1, 2) of (x, y, z).
+inline float coord(float x, float y, float z, int k) { return k == 0 ? x : k == 1 ? y : z; }
 
 /// Component k of v per lane, k given as the masks k == 0 and k == 1.
 template <int N>
@@ -122,6 +125,7 @@ struct WatertightTest {
   vfloat<N> sx, sy, sz;
   vbool<N> kx0, kx1, ky0, ky1, kz0, kz1;  // per lane: kx == 0, kx == 1, ...
   int kx = -1, ky = -1, kz = -1;          // the same for every active lane, else -1
+  PacketVec3<N> org;                      // with kz >= 0: the origin permuted to (kx, ky, kz)
 
   WatertightTest(const RayPacket<N>& ray, vbool<N> active) {
     const vfloat<N> ax = abs_value(ray.dir[0]), ay = abs_value(ray.dir[1]), az = abs_value(ray.dir[2]);
@@ -152,30 +156,37 @@ struct WatertightTest {
       kx = kNextAxis[kz];
       ky = kNextAxis[kz + 1];
       if (neg.lane(lead)) std::swap(kx, ky);
+      org[0] = ray.org[kx];
+      org[1] = ray.org[ky];
+      org[2] = ray.org[kz];
     }
   }
 
   template <bool kOcclusion>
   void intersect(const TriRecord& rec, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
-                  vbool<N>& occluded) const {
+                 vbool<N>& occluded) const {
     const TriVerts& tri = rec.watertight;
     const std::int32_t prim = static_cast<std::int32_t>(tri.id);
-    PacketVec3<N> a, b, c;  // vertices relative to the ray origin
-    a[0] = vfloat<N>(tri.ax) - ray.org[0];
-    a[1] = vfloat<N>(tri.ay) - ray.org[1];
-    a[2] = vfloat<N>(tri.az) - ray.org[2];
-    b[0] = vfloat<N>(tri.bx) - ray.org[0];
-    b[1] = vfloat<N>(tri.by) - ray.org[1];
-    b[2] = vfloat<N>(tri.bz) - ray.org[2];
-    c[0] = vfloat<N>(tri.cx) - ray.org[0];
-    c[1] = vfloat<N>(tri.cy) - ray.org[1];
-    c[2] = vfloat<N>(tri.cz) - ray.org[2];
-    vfloat<N> a_x, a_y, a_z, b_x, b_y, b_z, c_x, c_y, c_z;  // permuted: (kx, ky, kz)
+    // The vertices relative to the ray origin, permuted to (kx, ky, kz): the same
+    // subtractions either way, so the same bits per lane.
+    vfloat<N> a_x, a_y, a_z, b_x, b_y, b_z, c_x, c_y, c_z;
     if (kz >= 0) {
-      a_x = a[kx], a_y = a[ky], a_z = a[kz];
-      b_x = b[kx], b_y = b[ky], b_z = b[kz];
-      c_x = c[kx], c_y = c[ky], c_z = c[kz];
+      a_x = vfloat<N>(coord(tri.ax, tri.ay, tri.az, kx)) - org[0];
+      a_y = vfloat<N>(coord(tri.ax, tri.ay, tri.az, ky)) - org[1];
+      a_z = vfloat<N>(coord(tri.ax, tri.ay, tri.az, kz)) - org[2];
+      b_x = vfloat<N>(coord(tri.bx, tri.by, tri.bz, kx)) - org[0];
+      b_y = vfloat<N>(coord(tri.bx, tri.by, tri.bz, ky)) - org[1];
+      b_z = vfloat<N>(coord(tri.bx, tri.by, tri.bz, kz)) - org[2];
+      c_x = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, kx)) - org[0];
+      c_y = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, ky)) - org[1];
+      c_z = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, kz)) - org[2];
     } else {
+      PacketVec3<N> a, b, c;
+      for (int axis = 0; axis < 3; ++axis) {
+        a[axis] = vfloat<N>(coord(tri.ax, tri.ay, tri.az, axis)) - ray.org[axis];
+        b[axis] = vfloat<N>(coord(tri.bx, tri.by, tri.bz, axis)) - ray.org[axis];
+        c[axis] = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, axis)) - ray.org[axis];
+      }
       a_x = pick(kx0, kx1, a), a_y = pick(ky0, ky1, a), a_z = pick(kz0, kz1, a);
       b_x = pick(kx0, kx1, b), b_y = pick(ky0, ky1, b), b_z = pick(kz0, kz1, b);
       c_x = pick(kx0, kx1, c), c_y = pick(ky0, ky1, c), c_z = pick(kz0, kz1, c);
