@@ -1,5 +1,7 @@
-// Packet kd-tree traversal and Wald's projection triangle test, written once over the packet
-// width N (N = 1 is the scalar reference). Included only by kernel sources compiled per ISA.
+// Packet kd-tree traversal with Wald's projection triangle test or Woop's watertight one,
+// written once over the packet width N (N = 1 is the scalar reference). Included only by
+// kernel sources compiled per ISA. The test is a template parameter of the traversal, chosen
+// once per query from KdTree::watertight().
 //
 // Every lane does exactly what a single ray would do: the same leaves in the same order
 // (per-ray [near, far] segments, a lane leaves the packet's path as soon as its segment is
@@ -10,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
@@ -80,16 +83,177 @@ inline void intersect_triangle(const TriAccel& acc, std::int32_t prim, const Ray
   }
 }
 
+/// Wald's test as the traversal's triangle test: needs nothing per packet.
+template <int N>
+struct WaldTest {
+  static constexpr bool kConservative = false;  ///< leaves visited as computed (see traverse_coherent)
+  WaldTest(const RayPacket<N>& /*ray*/, vbool<N> /*active*/) {}
+  template <bool kOcclusion>
+  void intersect(const TriRecord& rec, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
+                 vbool<N>& occluded) const {
+    intersect_triangle<N, kOcclusion>(rec.wald, static_cast<std::int32_t>(rec.wald.id), ray, active, hit, occluded);
+  }
+};
+
+/// |x| (clears the sign bit, also of -0).
+template <int N>
+inline vfloat<N> abs_value(vfloat<N> x) {
+  return select(sign_bit(x), -x, x);
+}
+
+/// Coordinate k (0, 1, 2) of (x, y, z).
+inline float coord(float x, float y, float z, int k) { return k == 0 ? x : k == 1 ? y : z; }
+
+/// Component k of v per lane, k given as the masks k == 0 and k == 1.
+template <int N>
+inline vfloat<N> pick(vbool<N> is0, vbool<N> is1, const PacketVec3<N>& v) {
+  return select(is0, v[0], select(is1, v[1], v[2]));
+}
+
+/// Woop, Benthin and Wald's watertight test (2013, JCGT 2(1), section 3 and the appendix's
+/// code). Per packet: kz = the axis of the largest |dir|, kx and ky the next ones (swapped
+/// when dir[kz] < 0 to keep the winding), and the shear Sx = dir[kx]/dir[kz],
+/// Sy = dir[ky]/dir[kz], Sz = 1/dir[kz], all per lane. Per triangle: the vertices relative to
+/// the origin are sheared so the ray becomes +z from (0, 0), the 2D edge functions U, V, W
+/// (recomputed in double for a lane where one is exactly 0, so that an edge shared by two
+/// triangles gives opposite signs in both), a hit when they share a sign and det = U + V + W
+/// is not 0. Lanes whose axes differ use per-lane selects; when every active lane has the same
+/// axes (all coherent packets) the axes are plain indices. Both give the same bits per lane.
+template <int N>
+struct WatertightTest {
+  static constexpr bool kConservative = true;  ///< a hit needs every leaf the ray touches
+  vfloat<N> sx, sy, sz;
+  vbool<N> kx0, kx1, ky0, ky1, kz0, kz1;  // per lane: kx == 0, kx == 1, ...
+  int kx = -1, ky = -1, kz = -1;          // the same for every active lane, else -1
+  PacketVec3<N> org;                      // with kz >= 0: the origin permuted to (kx, ky, kz)
+
+  WatertightTest(const RayPacket<N>& ray, vbool<N> active) {
+    const vfloat<N> ax = abs_value(ray.dir[0]), ay = abs_value(ray.dir[1]), az = abs_value(ray.dir[2]);
+    // The paper's max_dim: ties go to the later axis.
+    const vbool<N> x_gt_y = ax > ay;
+    kz0 = x_gt_y & (ax > az);
+    kz1 = (!x_gt_y) & (ay > az);
+    const vbool<N> kz2 = !(kz0 | kz1);
+    const vfloat<N> d_z = pick(kz0, kz1, ray.dir);
+    const vbool<N> neg = d_z < vfloat<N>(0.0f);
+    const vbool<N> pos = !neg;
+    kx0 = (kz2 & pos) | (kz1 & neg);
+    kx1 = (kz0 & pos) | (kz2 & neg);
+    ky0 = (kz1 & pos) | (kz2 & neg);
+    ky1 = (kz2 & pos) | (kz0 & neg);
+    sx = pick(kx0, kx1, ray.dir) / d_z;
+    sy = pick(ky0, ky1, ray.dir) / d_z;
+    sz = vfloat<N>(1.0f) / d_z;
+
+    const unsigned lanes = bits(active);
+    const auto uniform = [lanes](vbool<N> m) {
+      const unsigned b = bits(m) & lanes;
+      return b == 0 || b == lanes;
+    };
+    if (lanes != 0 && uniform(kz0) && uniform(kz1) && uniform(neg)) {
+      const int lead = __builtin_ctz(lanes);
+      kz = kz0.lane(lead) ? 0 : kz1.lane(lead) ? 1 : 2;
+      kx = kNextAxis[kz];
+      ky = kNextAxis[kz + 1];
+      if (neg.lane(lead)) std::swap(kx, ky);
+      org[0] = ray.org[kx];
+      org[1] = ray.org[ky];
+      org[2] = ray.org[kz];
+    }
+  }
+
+  template <bool kOcclusion>
+  void intersect(const TriRecord& rec, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
+                 vbool<N>& occluded) const {
+    const TriVerts& tri = rec.watertight;
+    const std::int32_t prim = static_cast<std::int32_t>(tri.id);
+    // The vertices relative to the ray origin, permuted to (kx, ky, kz): the same
+    // subtractions either way, so the same bits per lane.
+    vfloat<N> a_x, a_y, a_z, b_x, b_y, b_z, c_x, c_y, c_z;
+    if (kz >= 0) {
+      a_x = vfloat<N>(coord(tri.ax, tri.ay, tri.az, kx)) - org[0];
+      a_y = vfloat<N>(coord(tri.ax, tri.ay, tri.az, ky)) - org[1];
+      a_z = vfloat<N>(coord(tri.ax, tri.ay, tri.az, kz)) - org[2];
+      b_x = vfloat<N>(coord(tri.bx, tri.by, tri.bz, kx)) - org[0];
+      b_y = vfloat<N>(coord(tri.bx, tri.by, tri.bz, ky)) - org[1];
+      b_z = vfloat<N>(coord(tri.bx, tri.by, tri.bz, kz)) - org[2];
+      c_x = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, kx)) - org[0];
+      c_y = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, ky)) - org[1];
+      c_z = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, kz)) - org[2];
+    } else {
+      PacketVec3<N> a, b, c;
+      for (int axis = 0; axis < 3; ++axis) {
+        a[axis] = vfloat<N>(coord(tri.ax, tri.ay, tri.az, axis)) - ray.org[axis];
+        b[axis] = vfloat<N>(coord(tri.bx, tri.by, tri.bz, axis)) - ray.org[axis];
+        c[axis] = vfloat<N>(coord(tri.cx, tri.cy, tri.cz, axis)) - ray.org[axis];
+      }
+      a_x = pick(kx0, kx1, a), a_y = pick(ky0, ky1, a), a_z = pick(kz0, kz1, a);
+      b_x = pick(kx0, kx1, b), b_y = pick(ky0, ky1, b), b_z = pick(kz0, kz1, b);
+      c_x = pick(kx0, kx1, c), c_y = pick(ky0, ky1, c), c_z = pick(kz0, kz1, c);
+    }
+    const vfloat<N> ax = a_x - sx * a_z, ay = a_y - sy * a_z;
+    const vfloat<N> bx = b_x - sx * b_z, by = b_y - sy * b_z;
+    const vfloat<N> cx = c_x - sx * c_z, cy = c_y - sy * c_z;
+    vfloat<N> u = cx * by - cy * bx;
+    vfloat<N> v = ax * cy - ay * cx;
+    vfloat<N> w = bx * ay - by * ax;
+    const vfloat<N> zero(0.0f);
+    // An edge function of exactly 0 may be a rounded sign: the paper recomputes all three in
+    // double (products of floats are exact there), one lane at a time as it is rare.
+    const unsigned redo = bits(active & ((u == zero) | (v == zero) | (w == zero)));
+    if (redo != 0) {
+      for (int i = 0; i < N; ++i) {
+        if (((redo >> i) & 1u) == 0) continue;
+        const double dax = ax.lane(i), day = ay.lane(i), dbx = bx.lane(i), dby = by.lane(i);
+        const double dcx = cx.lane(i), dcy = cy.lane(i);
+        u.set_lane(i, static_cast<float>(dcx * dby - dcy * dbx));
+        v.set_lane(i, static_cast<float>(dax * dcy - day * dcx));
+        w.set_lane(i, static_cast<float>(dbx * day - dby * dax));
+      }
+    }
+    // Both windings hit; NaN (a zero direction) fails both.
+    active &= ((u >= zero) & (v >= zero) & (w >= zero)) | ((u <= zero) & (v <= zero) & (w <= zero));
+    if (none(active)) return;
+    const vfloat<N> det = (u + v) + w;
+    active &= !(det == zero);
+    if (none(active)) return;
+    const vfloat<N> t_scaled = (u * (sz * a_z) + v * (sz * b_z)) + w * (sz * c_z);
+    const vfloat<N> inv_det = vfloat<N>(1.0f) / det;
+    // The paper compares T with t_min * det and t_hit * det to skip the division for misses;
+    // in a packet the division is one instruction for all lanes, and comparing the t that is
+    // stored keeps the tie rule exact (equal t goes to the higher id) and the result
+    // independent of the order in which triangles are tested, as in Wald's test.
+    const vfloat<N> t = t_scaled * inv_det;
+    if constexpr (kOcclusion) {
+      active &= (t > ray.t_min) & (t < ray.t_max);
+    } else {
+      const vint<N> id(prim);
+      active &= (t > ray.t_min) & ((t < hit.t) | ((t == hit.t) & (id > hit.prim) & (t < ray.t_max)));
+    }
+    if (none(active)) return;
+    if constexpr (kOcclusion) {
+      occluded |= active;
+    } else {
+      // U, V, W are the weights of vertices 0, 1, 2 (U is the edge function of edge b-c).
+      hit.t = select(active, t, hit.t);
+      hit.beta = select(active, v * inv_det, hit.beta);
+      hit.gamma = select(active, w * inv_det, hit.gamma);
+      hit.prim = select(active, vint<N>(prim), hit.prim);
+    }
+  }
+};
+
 /// Traverses the tree with the active lanes, which must share the sign of every direction
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
 /// lane visits both children with its whole segment (min/max keep the segment on NaN).
-template <int N, bool kOcclusion>
+/// Test is WaldTest or WatertightTest, matching the tree's records.
+template <int N, bool kOcclusion, template <int> class Test>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
                        HitPacket<N>& hit, vbool<N>& occluded) {
   const KdNode* nodes = tree.nodes().data();
   const std::uint32_t* refs = tree.prim_refs().data();
-  const TriAccel* accel = tree.tri_accel().data();
+  const TriRecord* records = tree.records().data();
   const Aabb& box = tree.bounds();
 
   int lead = 0;
@@ -110,8 +274,25 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     near = max(t_entry, near);  // NaN (origin on the face, parallel ray) keeps near
     far = min(t_exit, far);
   }
-  active &= near <= far;
+  // A watertight test finds a hit on a shared edge or vertex only in a leaf that holds one of
+  // the triangles there, and a triangle that merely touches a split plane at a vertex is
+  // referenced on one side only. A ray through such a vertex crosses three planes at nearly
+  // the same t, which rounding may order so that it skips the leaves holding the triangles
+  // (72 of 414720 rays aimed at a cube-sphere's vertices and edges missed). So with
+  // kConservative a segment counts as non-empty while near <= far * (1 + 2^-20): a slab t
+  // (b - o) * (1 / d) is within 3 ulps of exact (relative), so a leaf the exact ray touches is
+  // never skipped. The segments themselves stay exact, so leaves are still visited in order
+  // and the early exit (hit.t < far) is unchanged.
+  const auto reach = [](vfloat<N> t_far) {
+    if constexpr (Test<N>::kConservative) {
+      return t_far * vfloat<N>(1.0f + 0x1p-20f);
+    } else {
+      return t_far;
+    }
+  };
+  active &= near <= reach(far);
   if (none(active)) return;
+  const Test<N> test(ray, active);
 
   // Plain arrays, not vfloat members: a stack of 64 vector entries would otherwise be
   // zero-initialised on every call, which measured as a large share of a primary ray's cost.
@@ -135,8 +316,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const std::uint32_t far_child = node.left() + static_cast<std::uint32_t>(sign[axis] ^ 1);
       const vfloat<N> near_end = min(t_split, far);     // NaN: far
       const vfloat<N> far_start = max(t_split, near);   // NaN: near
-      const vbool<N> go_near = active & (near <= near_end);
-      const vbool<N> go_far = active & (far_start <= far);
+      const vbool<N> go_near = active & (near <= reach(near_end));
+      const vbool<N> go_far = active & (far_start <= reach(far));
       // One decision per node for the whole packet.
       if (none(go_far)) {
         index = near_child;
@@ -161,8 +342,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
 
     const std::uint32_t* leaf_refs = refs + node.prim_offset();
     for (std::uint32_t i = 0; i < node.count; ++i) {
-      const TriAccel& acc = accel[leaf_refs[i]];
-      intersect_triangle<N, kOcclusion>(acc, static_cast<std::int32_t>(acc.id), ray, active, hit, occluded);
+      test.template intersect<kOcclusion>(records[leaf_refs[i]], ray, active, hit, occluded);
       if constexpr (kOcclusion) {
         // A shadow ray stops at its first hit: occluded lanes test nothing more.
         active &= !occluded;
@@ -236,13 +416,13 @@ inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
 }
 
 /// One lane of a packet traced alone (N = 1), its result written back into the packet.
-template <int N, bool kOcclusion>
+template <int N, bool kOcclusion, template <int> class Test>
 inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
   const RayPacket<1> r = lane_ray(ray, i);
   HitPacket<1> h{0.0f, 0.0f, 0.0f, -1};  // occlusion queries leave `hit` alone
   if constexpr (!kOcclusion) h = HitPacket<1>{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
   vbool<1> occ(occluded.lane(i));
-  traverse_coherent<1, kOcclusion>(tree, r, vbool<1>(true), h, occ);
+  traverse_coherent<1, kOcclusion, Test>(tree, r, vbool<1>(true), h, occ);
   if constexpr (kOcclusion) {
     if (occ.m) occluded |= vbool<N>::from_bits(1u << i);
   } else {
@@ -258,12 +438,12 @@ inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPa
 /// octants (reflections off curved surfaces, shadow rays from scattered hits) is regrouped:
 /// each octant's lanes traverse as one masked packet, and an octant with a single lane goes
 /// alone through the N = 1 kernel. Lanes never interact, so the bits are the same either way.
-template <int N, bool kOcclusion>
+template <int N, bool kOcclusion, template <int> class Test>
 void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
                   vbool<N>& occluded) {
   if (tree.empty() || none(active)) return;
   if constexpr (N == 1) {
-    traverse_coherent<N, kOcclusion>(tree, ray, active, hit, occluded);
+    traverse_coherent<N, kOcclusion, Test>(tree, ray, active, hit, occluded);
   } else {
     const unsigned sx = bits(sign_bit(ray.dir[0]));
     const unsigned sy = bits(sign_bit(ray.dir[1]));
@@ -278,19 +458,24 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
       const unsigned group = left & mx & my & mz;
       left &= ~group;
       if ((group & (group - 1)) == 0) {
-        trace_lane<N, kOcclusion>(tree, ray, first, hit, occluded);
+        trace_lane<N, kOcclusion, Test>(tree, ray, first, hit, occluded);
       } else {
-        traverse_coherent<N, kOcclusion>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
+        traverse_coherent<N, kOcclusion, Test>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
       }
     }
   }
 }
 
-/// Closest hits; hit must come in with t = t_max and prim = -1 for the active lanes.
+/// Closest hits; hit must come in with t = t_max and prim = -1 for the active lanes. The
+/// triangle test follows the tree's records (KdTree::watertight()).
 template <int N>
 inline void intersect(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit) {
   vbool<N> unused(false);
-  trace_packet<N, false>(tree, ray, active, hit, unused);
+  if (tree.watertight()) {
+    trace_packet<N, false, WatertightTest>(tree, ray, active, hit, unused);
+  } else {
+    trace_packet<N, false, WaldTest>(tree, ray, active, hit, unused);
+  }
 }
 
 /// Occlusion (shadow) queries: stops at the first hit of each lane.
@@ -298,7 +483,11 @@ template <int N>
 inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active) {
   vbool<N> occ(false);
   HitPacket<N> unused;  // not read by occlusion queries
-  trace_packet<N, true>(tree, ray, active, unused, occ);
+  if (tree.watertight()) {
+    trace_packet<N, true, WatertightTest>(tree, ray, active, unused, occ);
+  } else {
+    trace_packet<N, true, WaldTest>(tree, ray, active, unused, occ);
+  }
   return occ;
 }
 

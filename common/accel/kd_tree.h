@@ -1,10 +1,13 @@
 // SAH kd-tree over a triangle array, with Wald's 8-byte nodes and 48-byte triangle records
-// (Wald, Slusallek, Benthin, Wagner 2001, sections 2.1-2.2).
+// (Wald, Slusallek, Benthin, Wagner 2001, sections 2.1-2.2), or optionally watertight records
+// holding the vertices for Woop, Benthin and Wald's test (2013).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -44,6 +47,34 @@ struct alignas(16) TriAccel {
 };
 static_assert(sizeof(TriAccel) == 48);
 
+/// Woop, Benthin and Wald's watertight record (2013, "Watertight Ray/Triangle Intersection",
+/// JCGT 2(1)), 48 bytes: the three vertices as given. Its members have the types of TriAccel's
+/// in the same order, so the two are layout-compatible: `k` and `id` sit at the same offsets
+/// (12 and 28) and, through TriRecord, read the same in either format.
+/// Trivially default-constructible (no member initialisers) so that it can share TriRecord
+/// with TriAccel; make_tri_verts fills every member.
+struct alignas(16) TriVerts {
+  float ax, ay, az;
+  std::uint32_t k;  ///< 3 marks a degenerate triangle (never in the tree); 0 otherwise
+  float bx, by, bz;
+  std::uint32_t id;  ///< the triangle's index in the arrays given to KdTree::build
+  float cx, cy, cz;
+  std::uint32_t pad1;
+};
+static_assert(sizeof(TriVerts) == 48);
+static_assert(std::is_layout_compatible_v<TriVerts, TriAccel>);
+static_assert(offsetof(TriVerts, k) == offsetof(TriAccel, k) && offsetof(TriVerts, id) == offsetof(TriAccel, id));
+
+/// One 48-byte triangle slot: `wald` in trees built with KdBuildOptions::watertight = false,
+/// `watertight` otherwise (KdTree::watertight() says which). The two structs are
+/// layout-compatible (same member types in the same order), so by the common-initial-sequence
+/// rule `wald.k` and `wald.id` may be read whichever member holds the record.
+union TriRecord {
+  TriAccel wald = {};
+  TriVerts watertight;
+};
+static_assert(sizeof(TriRecord) == 48 && alignof(TriRecord) == 16);
+
 /// Build parameters: the SAH cost model (Wald & Havran 2006) and termination limits.
 struct KdBuildOptions {
   float traversal_cost = 2.0f;     ///< K_T, cost of one traversal step (2 measured best for 8/16-wide packets)
@@ -52,6 +83,9 @@ struct KdBuildOptions {
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
   int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves
   int threads = 0;                 ///< 0: all cores (TBB's default)
+  /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
+  /// references are the same either way (the same triangles are left out as degenerate).
+  bool watertight = false;
 };
 
 /// What a build produced; `to_string` gives the one-line summary the tools log.
@@ -82,13 +116,18 @@ class KdTree {
                       const KdBuildOptions& options = {});
 
   [[nodiscard]] const std::vector<KdNode>& nodes() const { return nodes_; }
-  /// Leaf references: indices into tri_accel() (not triangle ids; TriAccel::id gives those).
+  /// Leaf references: indices into records() (not triangle ids; TriAccel::id gives those).
   [[nodiscard]] const std::vector<std::uint32_t>& prim_refs() const { return prim_refs_; }
   /// The 48-byte records in the order the leaves first reference them (depth first), so that
   /// a leaf's triangles sit together in memory; unreferenced (degenerate) ones come last.
-  [[nodiscard]] const std::vector<TriAccel>& tri_accel() const { return tri_accel_; }
+  /// `wald` or `watertight` as watertight() says; `wald.k` and `wald.id` are valid in both.
+  [[nodiscard]] const std::vector<TriRecord>& records() const { return records_; }
   /// The record of triangle `id`.
-  [[nodiscard]] const TriAccel& tri_accel_of(std::uint32_t id) const { return tri_accel_[accel_index_[id]]; }
+  [[nodiscard]] const TriRecord& record_of(std::uint32_t id) const { return records_[accel_index_[id]]; }
+  /// Triangle `id`'s record as Wald's: all of it when !watertight(), else only `k` and `id`.
+  [[nodiscard]] const TriAccel& tri_accel_of(std::uint32_t id) const { return record_of(id).wald; }
+  /// Whether the records are Woop's watertight ones (KdBuildOptions::watertight).
+  [[nodiscard]] bool watertight() const { return watertight_; }
   /// Scene bounds, slightly enlarged so rays that graze the outermost triangles still enter.
   [[nodiscard]] const Aabb& bounds() const { return bounds_; }
   [[nodiscard]] const KdBuildStats& stats() const { return stats_; }
@@ -97,13 +136,16 @@ class KdTree {
  private:
   std::vector<KdNode> nodes_;
   std::vector<std::uint32_t> prim_refs_;
-  std::vector<TriAccel> tri_accel_;
-  std::vector<std::uint32_t> accel_index_;  ///< triangle id -> index into tri_accel_
+  std::vector<TriRecord> records_;
+  std::vector<std::uint32_t> accel_index_;  ///< triangle id -> index into records_
   Aabb bounds_;
   KdBuildStats stats_;
+  bool watertight_ = false;
 };
 
 /// The 48-byte record for triangle (a, b, c); k = 3 when the triangle has zero area.
 [[nodiscard]] TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+/// The watertight record for triangle (a, b, c); k = 3 exactly when make_tri_accel gives 3.
+[[nodiscard]] TriVerts make_tri_verts(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 
 }  // namespace rtc

@@ -723,6 +723,19 @@ TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3&
   return acc;
 }
 
+TriVerts make_tri_verts(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  TriVerts v{};
+  v.k = 3;
+  // Same zero-area rule as make_tri_accel, so both formats leave out the same triangles and
+  // build the same tree.
+  if (make_tri_accel(a, b, c).k == 3) return v;
+  v.k = 0;
+  v.ax = a.x, v.ay = a.y, v.az = a.z;
+  v.bx = b.x, v.by = b.y, v.bz = b.z;
+  v.cx = c.x, v.cy = c.y, v.cz = c.z;
+  return v;
+}
+
 std::string KdBuildStats::to_string() const {
   return fmt::format(
       "kd-tree: {} triangles ({} degenerate skipped) in {:.1f} ms, {} nodes, {} leaves ({} empty), "
@@ -739,12 +752,11 @@ namespace {
 // scattered over the whole array; each record keeps its triangle id (TriAccel::id) for hits
 // and tie-breaking, so results do not change. Deterministic; O(nodes + references).
 void order_records_by_leaves(const std::vector<KdNode>& nodes, std::vector<std::uint32_t>& refs,
-                             std::vector<TriAccel>& records, std::vector<std::uint32_t>& index_of) {
+                             std::vector<TriRecord>& records, std::vector<std::uint32_t>& index_of) {
   constexpr std::uint32_t kUnplaced = 0xFFFFFFFFu;
   const std::size_t n = records.size();
-  for (std::size_t i = 0; i < n; ++i) records[i].id = static_cast<std::uint32_t>(i);
   index_of.assign(n, kUnplaced);
-  std::vector<TriAccel> ordered;
+  std::vector<TriRecord> ordered;
   ordered.reserve(n);
   std::vector<std::uint32_t> stack{0};
   while (!stack.empty()) {
@@ -788,7 +800,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   KdTree tree;
   tree.stats_.triangles = triangles.size();
-  tree.tri_accel_.resize(triangles.size());
+  tree.watertight_ = options.watertight;
+  tree.records_.resize(triangles.size());
   std::vector<Aabb> tri_box(triangles.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
@@ -796,8 +809,15 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
       RTC_CHECK(t.x < positions.size() && t.y < positions.size() && t.z < positions.size(),
                 "kd-tree: triangle index out of range (loaders validate indices)");
       const glm::vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
-      tree.tri_accel_[i] = make_tri_accel(a, b, c);
-      if (tree.tri_accel_[i].k < 3) {
+      TriRecord& rec = tree.records_[i];
+      if (options.watertight) {
+        rec.watertight = make_tri_verts(a, b, c);
+        rec.watertight.id = static_cast<std::uint32_t>(i);
+      } else {
+        rec.wald = make_tri_accel(a, b, c);
+        rec.wald.id = static_cast<std::uint32_t>(i);
+      }
+      if (rec.wald.k < 3) {  // valid in either format (TriRecord)
         tri_box[i].extend(a);
         tri_box[i].extend(b);
         tri_box[i].extend(c);
@@ -843,7 +863,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   tree.stats_.sah_cost = root_area > 0.0f ? cost_area / static_cast<double>(root_area) : 0.0;
   top.reset();
 
-  order_records_by_leaves(tree.nodes_, tree.prim_refs_, tree.tri_accel_, tree.accel_index_);
+  order_records_by_leaves(tree.nodes_, tree.prim_refs_, tree.records_, tree.accel_index_);
 
   tree.stats_.nodes = tree.nodes_.size();
   tree.stats_.prim_refs = tree.prim_refs_.size();

@@ -118,7 +118,9 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   fs->settings = settings;
   auto geometry = std::make_shared<FrameGeometry>();
   flatten(scene, pose, *geometry);
-  geometry->tree = KdTree::build(geometry->positions, geometry->triangles, kd);
+  KdBuildOptions tree_options = kd;
+  tree_options.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
+  geometry->tree = KdTree::build(geometry->positions, geometry->triangles, tree_options);
   fs->geometry = std::move(geometry);
   return fs;
 }

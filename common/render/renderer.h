@@ -63,7 +63,8 @@ class Renderer {
   std::vector<glm::mat4> last_world_from_object_;  ///< the mesh placement last_ was built for
 };
 
-/// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests.
+/// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests. The tree uses
+/// `kd`, except that `settings.intersector` decides KdBuildOptions::watertight.
 [[nodiscard]] std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame,
                                                             const RenderSettings& settings,
                                                             const KdBuildOptions& kd);

@@ -66,6 +66,14 @@ void check_render_settings(const RenderSettings& s) {
   if (s.spp < 1 || s.spp > 4096) {
     throw Error("render settings: spp must be in [1, 4096], got " + std::to_string(s.spp));
   }
+  if (s.intersector != Intersector::Wald && s.intersector != Intersector::Watertight) {
+    throw Error("render settings: intersector must be 0 (wald) or 1 (watertight), got " +
+                std::to_string(static_cast<int>(s.intersector)));
+  }
+}
+
+const char* intersector_name(Intersector intersector) {
+  return intersector == Intersector::Watertight ? "watertight" : "wald";
 }
 
 glm::dquat slerp_shortest(const glm::dquat& a, const glm::dquat& b, double t) {

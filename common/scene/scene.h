@@ -117,16 +117,26 @@ struct Animation {
   std::vector<LightTrack> lights;
 };
 
+/// The ray/triangle test. Numbers are the scene bytes' (protocol/protocol.md).
+enum class Intersector : std::uint8_t {
+  Wald = 0,        ///< Wald's projected barycentric test (2001): fast, rays may slip through shared edges
+  Watertight = 1,  ///< Woop, Benthin and Wald's watertight test (2013)
+};
+
+/// "wald" or "watertight" (the JSON and CLI spelling).
+[[nodiscard]] const char* intersector_name(Intersector intersector);
+
 /// Settings that trade time for accuracy; the scene file may set them, the CLI may override.
 struct RenderSettings {
   int max_depth = 5;          ///< reflection bounces after the primary hit
   float min_weight = 0.01f;   ///< ray-weight cutoff: reflections weaker than this are not traced
   int spp = 1;                ///< samples per pixel (deterministic pattern)
+  Intersector intersector = Intersector::Wald;  ///< changes pixels at shared edges, so it travels with the scene
 };
 
 /// Throws rtc::Error("render settings: <field> must be in [lo, hi], got <value>") unless
-/// max_depth is in [0, 64], min_weight in [0, 1] and spp in [1, 4096]. The renderer and the
-/// scene deserializer both check with it.
+/// max_depth is in [0, 64], min_weight in [0, 1], spp in [1, 4096] and intersector one of the
+/// enum's values. The renderer and the scene deserializer both check with it.
 void check_render_settings(const RenderSettings& settings);
 
 /// A whole scene. Value type; copying copies the meshes.

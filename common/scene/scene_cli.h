@@ -17,9 +17,10 @@ struct SceneCliOptions {
   std::string scene_path;  ///< empty: the built-in default scene
   int width = 0, height = 0, spp = 0, max_depth = -1;
   float min_weight = -1.0f;
+  std::string intersector;  ///< empty: the scene's
 };
 
-/// Registers SCENE and --width --height --spp --max-depth --min-weight on `app`.
+/// Registers SCENE and --width --height --spp --max-depth --min-weight --intersector on `app`.
 inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
   app.add_option("scene", o.scene_path,
                  "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
@@ -31,6 +32,10 @@ inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
       ->check(CLI::Range(0, 64));
   app.add_option("--min-weight", o.min_weight, "ray-weight cutoff for reflections (default: the scene's, 0.01)")
       ->check(CLI::Range(0.0f, 1.0f));
+  app.add_option("--intersector", o.intersector,
+                 "ray/triangle test: wald (fast) or watertight (no rays through shared edges) "
+                 "(default: the scene's, normally wald)")
+      ->check(CLI::IsMember({"wald", "watertight"}));
 }
 
 /// Loads the scene (or the built-in one), applies the overrides and logs what was loaded.
@@ -44,6 +49,9 @@ inline Scene load_scene_from_cli(const SceneCliOptions& o) {
   if (o.spp > 0) scene.settings.spp = o.spp;
   if (o.max_depth >= 0) scene.settings.max_depth = o.max_depth;
   if (o.min_weight >= 0.0f) scene.settings.min_weight = o.min_weight;
+  if (!o.intersector.empty()) {
+    scene.settings.intersector = o.intersector == "watertight" ? Intersector::Watertight : Intersector::Wald;
+  }
   spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
                o.scene_path.empty() ? "(built-in default)" : o.scene_path, scene.meshes.size(), scene.triangle_count(),
                scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());

@@ -595,7 +595,7 @@ class SceneJsonLoader {
   }
 
   void read_render(const Json& j) {
-    r_.expect_object(j, "render", {"max_depth", "min_weight", "spp"});
+    r_.expect_object(j, "render", {"max_depth", "min_weight", "spp", "intersector"});
     if (const Json* v = r_.optional(j, "max_depth")) {
       scene_.settings.max_depth = static_cast<int>(r_.integer(*v, "render.max_depth", 0, 64));
     }
@@ -607,6 +607,16 @@ class SceneJsonLoader {
     }
     if (const Json* v = r_.optional(j, "spp")) {
       scene_.settings.spp = static_cast<int>(r_.integer(*v, "render.spp", 1, 4096));
+    }
+    if (const Json* v = r_.optional(j, "intersector")) {
+      const std::string name = r_.string(*v, "render.intersector");
+      if (name == "wald") {
+        scene_.settings.intersector = Intersector::Wald;
+      } else if (name == "watertight") {
+        scene_.settings.intersector = Intersector::Watertight;
+      } else {
+        r_.fail("render.intersector", "must be \"wald\" or \"watertight\", got \"" + name + "\"");
+      }
     }
   }
 

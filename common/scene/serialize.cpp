@@ -21,7 +21,7 @@ namespace rtc {
 namespace {
 
 constexpr std::array<std::uint8_t, 4> kMagic = {'R', 'T', 'C', 'S'};
-constexpr std::uint32_t kFormatVersion = 1;
+constexpr std::uint32_t kFormatVersion = 2;
 // Image sides a worker accepts (32768 x 32768 RGBA float is already 16 GiB).
 constexpr int kMaxImageSide = 32768;
 
@@ -284,6 +284,7 @@ class SceneDecoder {
     s.max_depth = r_.i32("settings.max_depth");
     s.min_weight = r_.f32("settings.min_weight");
     s.spp = r_.i32("settings.spp");
+    s.intersector = static_cast<Intersector>(r_.u8("settings.intersector"));
     check();
     try {
       check_render_settings(s);
@@ -469,12 +470,12 @@ class SceneDecoder {
 
 }  // namespace
 
-// The scene bytes, version 1 (all little-endian; f32 is the IEEE float's bits, vec3 is three
+// The scene bytes, version 2 (all little-endian; f32 is the IEEE float's bits, vec3 is three
 // f32 x, y, z; str is a u32 byte length then the bytes, no terminator; bool is a u8 0 or 1):
-//   "RTCS" magic, u32 format version = 1
+//   "RTCS" magic, u32 format version = 2 (version 1 lacked intersector)
 //   "SCEN" name str, source str, width i32, height i32 (both in [1, 32768]), background vec3,
 //          ambient vec3, max_depth i32 [0, 64], min_weight f32 [0, 1], spp i32 [1, 4096],
-//          camera_automatic bool, camera (eye vec3, look_at vec3, up vec3, vfov_deg f32)
+//          intersector u8 (0 wald, 1 watertight), camera_automatic bool, camera (eye vec3, look_at vec3, up vec3, vfov_deg f32)
 //   "MATL" u32 count (>= 1), each: name str, diffuse vec3, specular vec3, shininess f32,
 //          emission vec3, reflective bool, opacity f32
 //   "LGHT" u32 count, each: position vec3, color vec3
@@ -506,6 +507,7 @@ std::vector<std::uint8_t> serialize_scene(const Scene& scene) {
   w.i32(scene.settings.max_depth);
   w.f32(scene.settings.min_weight);
   w.i32(scene.settings.spp);
+  w.u8(static_cast<std::uint8_t>(scene.settings.intersector));
   w.u8(scene.camera_automatic ? 1 : 0);
   put_camera(w, scene.camera);
 

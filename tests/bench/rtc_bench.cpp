@@ -256,6 +256,9 @@ int run(int argc, char** argv) {
   app.add_flag("--no-embree-check", no_embree_check, "with --sweep: skip the Embree cross-check of the reference");
   app.add_option("--width", width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
   app.add_option("--height", height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));
+  std::string intersector;
+  app.add_option("--intersector", intersector, "ray/triangle test: wald or watertight (default: the scene's, normally wald)")
+      ->check(CLI::IsMember({"wald", "watertight"}));
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
@@ -265,6 +268,9 @@ int run(int argc, char** argv) {
   auto load = [&] {
     rtc::Scene sc = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(path);
     if (width > 0 || height > 0) rtc::set_resolution(sc, width > 0 ? width : sc.width, height > 0 ? height : sc.height);
+    if (!intersector.empty()) {
+      sc.settings.intersector = intersector == "watertight" ? rtc::Intersector::Watertight : rtc::Intersector::Wald;
+    }
     return sc;
   };
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());
@@ -319,6 +325,7 @@ int run(int argc, char** argv) {
   nlohmann::json base = {{"scene", name},
                          {"threads", thread_count},
                          {"isa", std::string(rtc::isa_name(isa))},
+                         {"intersector", rtc::intersector_name(scene.settings.intersector)},
                          {"width", fs->width},
                          {"height", fs->height},
                          {"triangles", kd.triangles},
@@ -337,9 +344,9 @@ int run(int argc, char** argv) {
     base["embree_build_hq_ms"] = embree_build_hq_ms;
   }
   if (!json) {
-    std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s; load %.0f ms\n", name.c_str(),
+    std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s, intersector %s; load %.0f ms\n", name.c_str(),
                 static_cast<unsigned long long>(kd.triangles), fs->width, fs->height, thread_count,
-                std::string(rtc::isa_name(isa)).c_str(), load_ms);
+                std::string(rtc::isa_name(isa)).c_str(), rtc::intersector_name(scene.settings.intersector), load_ms);
     std::printf("  build: rtc kd-tree %.1f ms (%s)\n", build_ms, kd.to_string().c_str());
     if (compare) {
       std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality)\n", embree_build_ms,

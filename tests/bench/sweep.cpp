@@ -84,6 +84,12 @@ std::vector<Variant> make_variants(const Scene& scene, bool quick) {
     v.settings.max_depth = 64;
     v.settings.min_weight = 0.0f;
   });
+  add("most accurate", "max depth 64, min weight 0, float, watertight", [&](Variant& v) {
+    v.settings.max_depth = 64;
+    v.settings.min_weight = 0.0f;
+    v.settings.intersector = Intersector::Watertight;
+    v.wire = WireFormat::Float;
+  });
   for (WireFormat f : {WireFormat::Rgba8, WireFormat::Half, WireFormat::Float}) {
     for (Compression c : {Compression::None, Compression::Lz4, Compression::Zstd}) {
       if (f == base.wire && c == base.compression) continue;
@@ -94,6 +100,11 @@ std::vector<Variant> make_variants(const Scene& scene, bool quick) {
       });
     }
   }
+  add("triangle test", base.settings.intersector == Intersector::Wald ? "watertight test" : "Wald test",
+      [&](Variant& v) {
+        v.settings.intersector =
+            base.settings.intersector == Intersector::Wald ? Intersector::Watertight : Intersector::Wald;
+      });
   for (Isa i : compiled_isas()) {
     if (!cpu_supports(i) || i == base.isa) continue;
     add("packet width / ISA", fmt::format("{} packets", isa_name(i)), [&](Variant& v) { v.isa = i; });
@@ -316,13 +327,14 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
 
   const std::filesystem::path csv_path = options.out_dir / "sweep.csv";
   std::ofstream csv(csv_path);
-  csv << "group,setting,is_default,pareto,max_depth,min_weight,isa,packets,kd_traversal_cost,kd_intersection_cost,"
+  csv << "group,setting,is_default,pareto,max_depth,min_weight,intersector,isa,packets,kd_traversal_cost,kd_intersection_cost,"
          "kd_max_depth,kd_leaf_size,wire,compression,build_ms,render_ms,codec_ms,wire_bytes,link_ms_100mbit,total_ms,"
          "primary_rays,shadow_rays,reflection_rays,rmse,psnr_db,max_abs,pct_over_1_255,non_finite\n";
   for (const Result& r : results) {
     const Variant& v = r.v;
     csv << '"' << v.group << "\",\"" << v.label << "\"," << (v.is_default ? 1 : 0) << ',' << (r.pareto ? 1 : 0) << ','
-        << v.settings.max_depth << ',' << fmt_float(v.settings.min_weight) << ',' << isa_name(v.isa) << ','
+        << v.settings.max_depth << ',' << fmt_float(v.settings.min_weight) << ','
+        << intersector_name(v.settings.intersector) << ',' << isa_name(v.isa) << ','
         << (v.packets ? 1 : 0) << ',' << fmt_float(v.kd.traversal_cost) << ',' << fmt_float(v.kd.intersection_cost) << ','
         << v.kd.max_depth << ',' << v.kd.leaf_size << ',' << wire_format_name(v.wire) << ','
         << compression_name(v.compression) << ',' << fmt::format("{:.3f},{:.3f},{:.3f},", r.build_ms, r.render_ms, r.codec_ms)

@@ -1,5 +1,6 @@
 // rtc's tracer against Embree 3 as the oracle: every view of ../shared/scenes (skipped when the
-// folder is absent) and generated scenes, primary rays exactly as in CAMERA.md.
+// folder is absent) and generated scenes, primary rays exactly as in CAMERA.md; with Wald's
+// triangle test, and with the watertight one on a few views and the generated scenes.
 //   hit/miss agree on >= 99.99% of pixels; the same triangle => relative t difference <= 1e-5;
 //   different triangles => a verified tie (equal t, shared vertex or both on an edge), < 0.1%.
 #include <gtest/gtest.h>
@@ -109,7 +110,29 @@ INSTANTIATE_TEST_SUITE_P(
                       "spd-mount-s10/view.json"),
     view_test_name);
 
+// The watertight test (RenderSettings::intersector), same thresholds.
+class SharedViewWatertight : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(SharedViewWatertight, AgreesWithEmbree) {
+  const std::filesystem::path view = std::filesystem::path(RTC_SHARED_SCENES) / GetParam();
+  if (!std::filesystem::exists(view)) GTEST_SKIP() << view << " is absent (the shared scene pack is not here)";
+  Scene scene = load_scene(view);
+  scene.settings.intersector = Intersector::Watertight;
+  check_against_embree(scene, std::string(GetParam()) + " watertight");
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, SharedViewWatertight,
+                         ::testing::Values("bunny/view.json", "spd-teapot/view.json", "radiance-office/view.json",
+                                           "spd-gears/view.json", "spd-balls-s3/view.json", "spd-tree/view.json"),
+                         view_test_name);
+
 TEST(GeneratedScene, DefaultSceneAgreesWithEmbree) { check_against_embree(default_scene(), "default scene"); }
+
+TEST(GeneratedScene, DefaultSceneWatertightAgreesWithEmbree) {
+  Scene scene = default_scene();
+  scene.settings.intersector = Intersector::Watertight;
+  check_against_embree(scene, "default scene watertight");
+}
 
 // A field of closed UV spheres of many sizes over a floor, plus a cloud of random slivers, seen
 // from a camera that also looks along the floor: shared edges, slivers, grazing rays.
@@ -168,6 +191,14 @@ Scene generated_scene(std::uint32_t seed) {
 
 TEST(GeneratedScene, SpheresAndSliversAgreeWithEmbree) {
   for (std::uint32_t seed : {1u, 2u}) check_against_embree(generated_scene(seed), "generated seed " + std::to_string(seed));
+}
+
+TEST(GeneratedScene, SpheresAndSliversWatertightAgreeWithEmbree) {
+  for (std::uint32_t seed : {1u, 2u}) {
+    Scene scene = generated_scene(seed);
+    scene.settings.intersector = Intersector::Watertight;
+    check_against_embree(scene, "generated seed " + std::to_string(seed) + " watertight");
+  }
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
-// kd-tree build invariants, the triangle test, and traversal against a brute-force
-// double-precision reference, at packet width 4 and 1 (same bits).
+// kd-tree build invariants, the triangle tests (Wald's and Woop's watertight one), and
+// traversal against a brute-force double-precision reference, at packet width 4 and 1 (same
+// bits).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +14,7 @@
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
 #include "common/base/isa.h"
+#include "common/scene/tessellate.h"
 #include "tests/support/hit_compare.h"
 
 namespace rtc {
@@ -85,7 +87,7 @@ Aabb tri_box(const Soup& s, std::uint32_t t) {
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
   const std::uint32_t* r = tree.prim_refs().data() + leaf.prim_offset();
-  return std::any_of(r, r + leaf.count, [&](std::uint32_t ref) { return tree.tri_accel()[ref].id == tri; });
+  return std::any_of(r, r + leaf.count, [&](std::uint32_t ref) { return tree.records()[ref].wald.id == tri; });
 }
 
 // Every triangle is referenced by every leaf its bounds overlap with positive extent along
@@ -147,14 +149,57 @@ TEST(KdTree, BuildIsIndependentOfThreadCount) {
   }
 }
 
+KdBuildOptions with_test(bool watertight) {
+  KdBuildOptions o;
+  o.watertight = watertight;
+  return o;
+}
+
+const char* test_name(bool watertight) { return watertight ? "watertight" : "wald"; }
+
 TEST(KdTree, DegenerateTrianglesAreSkipped) {
   Soup s;
   s.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}};
   s.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 0, 2}};  // the last two have zero area
-  const KdTree tree = KdTree::build(s.positions, s.triangles);
-  EXPECT_EQ(tree.stats().degenerate, 2u);
-  EXPECT_EQ(tree.tri_accel_of(1).k, 3u);
-  EXPECT_EQ(tree.tri_accel_of(1).id, 1u);
+  for (bool watertight : {false, true}) {
+    SCOPED_TRACE(test_name(watertight));
+    const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
+    EXPECT_EQ(tree.watertight(), watertight);
+    EXPECT_EQ(tree.stats().degenerate, 2u);
+    EXPECT_EQ(tree.tri_accel_of(1).k, 3u);
+    EXPECT_EQ(tree.tri_accel_of(1).id, 1u);
+    EXPECT_EQ(tree.tri_accel_of(2).k, 3u);
+    EXPECT_EQ(tree.tri_accel_of(0).k, watertight ? 0u : 2u);
+    EXPECT_EQ(tree.tri_accel_of(0).id, 0u);
+    // A ray through all three (the degenerate ones lie on the x axis and the y axis).
+    RayQuery q;
+    q.org = {0.5f, 0.0f, 1.0f};
+    q.dir = {0.0f, 0.0f, -1.0f};
+    RayHit h;
+    trace_kernels().intersect(tree, &q, &h, 1, false);
+    EXPECT_EQ(h.prim, 0u);
+  }
+}
+
+TEST(KdTree, WatertightRecordsHoldTheVerticesAndTheSameTree) {
+  const Soup s = sphere_and_grid(16);
+  const KdTree wald = KdTree::build(s.positions, s.triangles);
+  const KdTree woop = KdTree::build(s.positions, s.triangles, with_test(true));
+  EXPECT_FALSE(wald.watertight());
+  EXPECT_TRUE(woop.watertight());
+  ASSERT_EQ(wald.nodes().size(), woop.nodes().size());
+  ASSERT_EQ(wald.prim_refs(), woop.prim_refs());
+  for (std::size_t i = 0; i < wald.records().size(); ++i) {
+    ASSERT_EQ(wald.records()[i].wald.id, woop.records()[i].wald.id);
+  }
+  for (std::uint32_t id = 0; id < s.triangles.size(); ++id) {
+    const TriVerts& v = woop.record_of(id).watertight;
+    ASSERT_EQ(v.id, id);
+    const glm::uvec3 t = s.triangles[id];
+    EXPECT_EQ(glm::vec3(v.ax, v.ay, v.az), s.positions[t.x]);
+    EXPECT_EQ(glm::vec3(v.bx, v.by, v.bz), s.positions[t.y]);
+    EXPECT_EQ(glm::vec3(v.cx, v.cy, v.cz), s.positions[t.z]);
+  }
 }
 
 TEST(KdTree, EmptyInputGivesATreeEveryRayMisses) {
@@ -169,19 +214,25 @@ TEST(KdTree, EmptyInputGivesATreeEveryRayMisses) {
 }
 
 TEST(TriAccel, IsFortyEightBytesAndGivesBarycentrics) {
-  static_assert(sizeof(TriAccel) == 48);
+  static_assert(sizeof(TriAccel) == 48 && sizeof(TriVerts) == 48 && sizeof(TriRecord) == 48);
   std::vector<glm::vec3> p = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
   std::vector<glm::uvec3> t = {{0, 1, 2}};
-  const KdTree tree = KdTree::build(p, t);
-  RayQuery q;
-  q.org = {0.5f, 0.25f, 3.0f};
-  q.dir = {0.0f, 0.0f, -1.0f};
-  RayHit h;
-  trace_kernels().intersect(tree, &q, &h, 1, false);
-  ASSERT_EQ(h.prim, 0u);
-  EXPECT_FLOAT_EQ(h.t, 3.0f);
-  EXPECT_FLOAT_EQ(h.beta, 0.25f);   // weight of vertex 1 = x / 2
-  EXPECT_FLOAT_EQ(h.gamma, 0.125f); // weight of vertex 2 = y / 2
+  for (bool watertight : {false, true}) {
+    SCOPED_TRACE(test_name(watertight));
+    const KdTree tree = KdTree::build(p, t, with_test(watertight));
+    // Both windings, and a direction whose largest component is negative (Woop swaps kx, ky).
+    for (const glm::vec3 dir : {glm::vec3(0.0f, 0.0f, -1.0f), glm::vec3(0.0f, 0.0f, 1.0f)}) {
+      RayQuery q;
+      q.org = {0.5f, 0.25f, -3.0f * dir.z};
+      q.dir = dir;
+      RayHit h;
+      trace_kernels().intersect(tree, &q, &h, 1, false);
+      ASSERT_EQ(h.prim, 0u);
+      EXPECT_FLOAT_EQ(h.t, 3.0f);
+      EXPECT_FLOAT_EQ(h.beta, 0.25f);   // weight of vertex 1 = x / 2
+      EXPECT_FLOAT_EQ(h.gamma, 0.125f); // weight of vertex 2 = y / 2
+    }
+  }
 }
 
 std::vector<RayQuery> random_rays(std::uint32_t seed, std::size_t count, bool coherent) {
@@ -223,11 +274,12 @@ std::vector<RayHit> brute_force(const Soup& s, const std::vector<RayQuery>& rays
 
 TEST(KdTraversal, AgreesWithBruteForceDouble) {
   for (bool coherent : {true, false}) {
+    for (bool watertight : {false, true}) {
     for (const Soup& s : {random_soup(5, 2000, 0.1f), sphere_and_grid(20)}) {
       const std::uint32_t seed = coherent ? 17u : 19u;
-      SCOPED_TRACE("random_rays seed " + std::to_string(seed));
+      SCOPED_TRACE("random_rays seed " + std::to_string(seed) + ", " + test_name(watertight));
       const std::vector<RayQuery> rays = random_rays(seed, 20000, coherent);
-      const KdTree tree = KdTree::build(s.positions, s.triangles);
+      const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
       std::vector<RayHit> hits(rays.size());
       trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), true);
       const std::vector<RayHit> ref = brute_force(s, rays);
@@ -244,14 +296,16 @@ TEST(KdTraversal, AgreesWithBruteForceDouble) {
       EXPECT_EQ(c.same_prim_t_bad, 0u);
       EXPECT_EQ(c.bad_ties, 0u);
     }
+    }
   }
 }
 
 TEST(KdTraversal, PacketsAndSingleRaysGiveTheSameBits) {
   const Soup s = sphere_and_grid(32);
-  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  for (bool watertight : {false, true}) {
+  const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
   for (bool coherent : {true, false}) {
-    SCOPED_TRACE("random_rays seed 23, coherent " + std::to_string(coherent));
+    SCOPED_TRACE("random_rays seed 23, coherent " + std::to_string(coherent) + ", " + test_name(watertight));
     const std::vector<RayQuery> rays = random_rays(23, 40000, coherent);
     std::vector<RayHit> a(rays.size()), b(rays.size());
     std::vector<std::uint8_t> oa(rays.size()), ob(rays.size());
@@ -265,12 +319,14 @@ TEST(KdTraversal, PacketsAndSingleRaysGiveTheSameBits) {
       ASSERT_EQ(oa[i] != 0, a[i].prim != kNoHit) << test::describe_ray(rays[i]);
     }
   }
+  }
 }
 
 TEST(KdTraversal, EveryIsaGivesTheSameBits) {
   const Soup s = sphere_and_grid(32);
-  const KdTree tree = KdTree::build(s.positions, s.triangles);
   int tried = 0;
+  for (bool watertight : {false, true}) {
+  const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
   for (bool coherent : {true, false}) {
     const std::vector<RayQuery> rays = random_rays(29, 40000, coherent);
     std::vector<RayHit> ref(rays.size()), got(rays.size());
@@ -283,7 +339,8 @@ TEST(KdTraversal, EveryIsaGivesTheSameBits) {
         continue;
       }
       ++tried;
-      SCOPED_TRACE(std::string(isa_name(isa)) + ", coherent " + std::to_string(coherent));
+      SCOPED_TRACE(std::string(isa_name(isa)) + ", coherent " + std::to_string(coherent) + ", " +
+                   test_name(watertight));
       for (bool packets : {true, false}) {
         trace_kernels(isa).intersect(tree, rays.data(), got.data(), rays.size(), packets);
         trace_kernels(isa).occluded(tree, rays.data(), ogot.data(), rays.size(), packets);
@@ -295,7 +352,8 @@ TEST(KdTraversal, EveryIsaGivesTheSameBits) {
       }
     }
   }
-  EXPECT_GE(tried, 2);  // SSE4.2 at least, twice
+  }
+  EXPECT_GE(tried, 4);  // SSE4.2 at least, twice per test
 }
 
 TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
@@ -304,10 +362,11 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   const Soup s = sphere_and_grid(32);
   const std::vector<RayQuery> rays = random_rays(31, 40000, true);
   std::vector<RayHit> ref(rays.size()), got(rays.size());
-  const KdTree base = KdTree::build(s.positions, s.triangles);
+  for (bool watertight : {false, true}) {
+  const KdTree base = KdTree::build(s.positions, s.triangles, with_test(watertight));
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
   for (const auto& [kt, ki, leaf] : {std::tuple{1.0f, 1.5f, 1}, std::tuple{4.0f, 1.0f, 1}, std::tuple{1.0f, 3.0f, 8}}) {
-    KdBuildOptions o;
+    KdBuildOptions o = with_test(watertight);
     o.traversal_cost = kt;
     o.intersection_cost = ki;
     o.leaf_size = leaf;
@@ -315,8 +374,10 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
     trace_kernels().intersect(other, rays.data(), got.data(), rays.size(), true);
     for (std::size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
-          << "K_T " << kt << " K_I " << ki << " leaf " << leaf << ": " << test::describe_ray(rays[i]);
+          << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << ": "
+          << test::describe_ray(rays[i]);
     }
+  }
   }
 }
 
@@ -324,7 +385,9 @@ TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {
   // Axis-aligned boxes of triangles; rays along the axes (inverse directions +-inf), starting
   // exactly on the planes the grid puts splits on, with +0 and -0 components.
   const Soup s = sphere_and_grid(16);
-  const KdTree tree = KdTree::build(s.positions, s.triangles);
+  for (bool watertight : {false, true}) {
+  SCOPED_TRACE(test_name(watertight));
+  const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
   std::vector<RayQuery> rays;
   for (const KdNode& n : tree.nodes()) {
     if (n.is_leaf()) continue;
@@ -352,13 +415,16 @@ TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {
   // Every interior hit must be found, and ties must be real.
   EXPECT_EQ(c.hit_miss_disagree - c.hit_miss_on_edge, 0u) << c.summary();
   EXPECT_EQ(c.bad_ties, 0u) << c.summary();
-  std::printf("axis-parallel rays on split planes: %s\n", c.summary().c_str());
+  std::printf("axis-parallel rays on split planes, %s: %s\n", test_name(watertight), c.summary().c_str());
+  }
 }
 
 TEST(KdTraversal, OcclusionRespectsTheInterval) {
   std::vector<glm::vec3> p = {{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}};
   std::vector<glm::uvec3> t = {{0, 1, 2}};
-  const KdTree tree = KdTree::build(p, t);
+  for (bool watertight : {false, true}) {
+  SCOPED_TRACE(test_name(watertight));
+  const KdTree tree = KdTree::build(p, t, with_test(watertight));
   RayQuery q;
   q.org = {0, 0, 2};
   q.dir = {0, 0, -1};
@@ -372,6 +438,77 @@ TEST(KdTraversal, OcclusionRespectsTheInterval) {
   q.t_min = 2.1f;
   trace_kernels().occluded(tree, &q, &occ, 1, true);
   EXPECT_EQ(occ, 0);
+  }
+}
+
+// A closed cube-sphere (welded vertices), rotated off the axes and moved off the origin.
+Soup closed_sphere(int quads) {
+  const SphereTemplate unit = make_cube_sphere(quads);
+  const glm::dmat3 rot = glm::dmat3(glm::dvec3(0.36, 0.48, -0.8), glm::dvec3(-0.8, 0.6, 0.0), glm::dvec3(0.48, 0.64, 0.6));
+  Soup s;
+  for (const glm::dvec3& p : unit.points) s.positions.emplace_back(glm::dvec3(0.3, -0.2, 0.1) + 1.7 * (rot * p));
+  s.triangles = unit.triangles;
+  return s;
+}
+
+// Rays from inside a closed mesh aimed exactly at its vertices and at points on its edges
+// (and from outside, straight in): with a watertight test none may get out without a hit.
+// Wald's test lets some through; their number is printed, not asserted.
+TEST(KdTraversal, WatertightNeverMissesSharedEdgesAndVertices) {
+  const Soup s = closed_sphere(24);
+  std::vector<RayQuery> rays;
+  std::vector<std::uint8_t> at_vertex;
+  const glm::vec3 center(0.3f, -0.2f, 0.1f);
+  const glm::vec3 inner[] = {center, center + glm::vec3(0.4f, 0.3f, -0.5f), center + glm::vec3(-0.7f, 0.0f, 0.2f)};
+  for (const glm::uvec3& t : s.triangles) {
+    for (int e = 0; e < 3; ++e) {
+      const glm::vec3 p0 = s.positions[t[e]], p1 = s.positions[t[(e + 1) % 3]];
+      for (float f : {0.0f, 0.125f, 0.3f, 0.5f, 0.71f}) {
+        const glm::vec3 target = p0 + f * (p1 - p0);
+        for (const glm::vec3& o : inner) {
+          RayQuery r;
+          r.org = o;
+          r.dir = target - o;
+          rays.push_back(r);
+          at_vertex.push_back(f == 0.0f);
+        }
+        RayQuery out;  // from outside, along the outward radius
+        out.org = center + 3.0f * (target - center);
+        out.dir = target - out.org;
+        rays.push_back(out);
+        at_vertex.push_back(f == 0.0f);
+      }
+    }
+  }
+  for (bool watertight : {false, true}) {
+    const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
+    for (const Isa isa : compiled_isas()) {
+      if (!cpu_supports(isa)) continue;
+      for (bool packets : {true, false}) {
+        std::vector<RayHit> hits(rays.size());
+        std::vector<std::uint8_t> occ(rays.size());
+        trace_kernels(isa).intersect(tree, rays.data(), hits.data(), rays.size(), packets);
+        trace_kernels(isa).occluded(tree, rays.data(), occ.data(), rays.size(), packets);
+        std::size_t missed = 0, missed_at_vertex = 0, unoccluded = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+          if (hits[i].prim == kNoHit) {
+            ++missed;
+            missed_at_vertex += at_vertex[i];
+            if (watertight && missed <= 5) ADD_FAILURE() << "missed: " << test::describe_ray(rays[i]);
+          }
+          if (occ[i] == 0) ++unoccluded;
+        }
+        std::printf("%s, %s, packets %d: %zu of %zu rays at shared edges and vertices missed (%zu of them at "
+                    "vertices), %zu not occluded\n",
+                    test_name(watertight), std::string(isa_name(isa)).c_str(), packets ? 1 : 0, missed, rays.size(),
+                    missed_at_vertex, unoccluded);
+        if (watertight) {
+          EXPECT_EQ(missed, 0u) << isa_name(isa) << " packets " << packets;
+          EXPECT_EQ(unoccluded, 0u) << isa_name(isa) << " packets " << packets;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -50,20 +50,42 @@ TEST(Renderer, PixelsDoNotDependOnTileSizeThreadsOrPackets) {
 
 TEST(Renderer, EveryIsaGivesTheSamePixels) {
   // The default scene has mirrors (reflection packets whose rays diverge) and shadows; odd
-  // tile sizes leave partial packets at tile edges.
-  const Scene scene = small_default();
-  const std::string reference = render_hash(scene, 64, 1, false, 0, Isa::Sse42);
-  for (const Isa isa : compiled_isas()) {
-    if (!cpu_supports(isa)) {
-      std::printf("EveryIsaGivesTheSamePixels: this CPU lacks %s, not tried\n", std::string(isa_name(isa)).c_str());
-      continue;
-    }
-    for (int tile : {64, 13, 6}) {
-      for (bool packets : {true, false}) {
-        EXPECT_EQ(render_hash(scene, tile, 2, packets, 0, isa), reference)
-            << isa_name(isa) << ", tile " << tile << ", packets " << packets;
+  // tile sizes leave partial packets at tile edges. Both triangle tests.
+  std::string wald_reference;
+  for (const Intersector intersector : {Intersector::Wald, Intersector::Watertight}) {
+    Scene scene = small_default();
+    scene.settings.intersector = intersector;
+    const std::string reference = render_hash(scene, 64, 1, false, 0, Isa::Sse42);
+    if (intersector == Intersector::Wald) wald_reference = reference;
+    for (const Isa isa : compiled_isas()) {
+      if (!cpu_supports(isa)) {
+        std::printf("EveryIsaGivesTheSamePixels: this CPU lacks %s, not tried\n", std::string(isa_name(isa)).c_str());
+        continue;
+      }
+      for (int tile : {64, 13, 6}) {
+        for (bool packets : {true, false}) {
+          EXPECT_EQ(render_hash(scene, tile, 2, packets, 0, isa), reference)
+              << intersector_name(intersector) << ", " << isa_name(isa) << ", tile " << tile << ", packets " << packets;
+        }
       }
     }
+    if (intersector == Intersector::Watertight) {
+      std::printf("EveryIsaGivesTheSamePixels: watertight pixels %s wald's\n",
+                  reference == wald_reference ? "equal" : "differ from");
+    }
+  }
+}
+
+TEST(Renderer, IntersectorSettingReachesTheTree) {
+  for (const Intersector intersector : {Intersector::Wald, Intersector::Watertight}) {
+    Scene scene = small_default();
+    scene.settings.intersector = intersector;
+    EXPECT_EQ(Renderer(scene).prepare(0)->geometry->tree.watertight(), intersector == Intersector::Watertight);
+    RenderOptions o;
+    RenderSettings other = scene.settings;
+    other.intersector = intersector == Intersector::Wald ? Intersector::Watertight : Intersector::Wald;
+    o.settings = other;  // an override wins over the scene's
+    EXPECT_EQ(Renderer(scene, o).prepare(0)->geometry->tree.watertight(), intersector == Intersector::Wald);
   }
 }
 

@@ -57,7 +57,7 @@ constexpr const char* kFullScene = R"({
   "resolution": [320, 200],
   "background": [0.1, 0.2, 0.3],
   "ambient": [0.05, 0.05, 0.05],
-  "render": {"max_depth": 3, "min_weight": 0.05, "spp": 4},
+  "render": {"max_depth": 3, "min_weight": 0.05, "spp": 4, "intersector": "watertight"},
   "source": "test", "license": "CC0", "notes": "all fields",
   "animation": {
     "frames": [0, 10],
@@ -103,6 +103,7 @@ TEST(SceneJson, LoadsEveryField) {
   EXPECT_EQ(scene.settings.max_depth, 3);
   EXPECT_EQ(scene.settings.min_weight, 0.05f);
   EXPECT_EQ(scene.settings.spp, 4);
+  EXPECT_EQ(scene.settings.intersector, Intersector::Watertight);
   const Animation& anim = scene.animation;
   EXPECT_EQ(anim.frame_begin, 0);
   EXPECT_EQ(anim.frame_end, 10);
@@ -162,6 +163,10 @@ TEST(SceneJson, WrongTypesAndLengthsNameTheField) {
               HasSubstr("\"resolution[1]\": expected an integer"));
   EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "render": {"spp": 0}})"),
               HasSubstr("\"render.spp\": must be in [1, 4096]"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "render": {"intersector": "moller"}})"),
+              HasSubstr("\"render.intersector\": must be \"wald\" or \"watertight\", got \"moller\""));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "render": {"intersector": 1}})"),
+              HasSubstr("\"render.intersector\": expected a string"));
   EXPECT_THAT(c.error(R"([1, 2])"),
               HasSubstr("expected an object"));
   EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "reflective": 1}]})"),

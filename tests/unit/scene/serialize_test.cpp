@@ -60,6 +60,7 @@ void expect_same_scene(const Scene& a, const Scene& b) {
   EXPECT_EQ(std::bit_cast<std::uint32_t>(a.settings.min_weight),
             std::bit_cast<std::uint32_t>(b.settings.min_weight));
   EXPECT_EQ(a.settings.spp, b.settings.spp);
+  EXPECT_EQ(a.settings.intersector, b.settings.intersector);
   EXPECT_TRUE(same_bytes(a.camera, b.camera));
   EXPECT_EQ(a.camera_automatic, b.camera_automatic);
 
@@ -150,7 +151,7 @@ Scene every_field_scene() {
   scene.height = 359;
   scene.background = {0.25f, -0.0f, 1e-40f};  // -0 and a denormal keep their bits
   scene.ambient = {0.1f, 0.2f, 0.30000001f};
-  scene.settings = RenderSettings{7, 0.125f, 3};
+  scene.settings = RenderSettings{7, 0.125f, 3, Intersector::Watertight};
   scene.camera = Camera{{1.5f, 2.5f, 9.0f}, {0.1f, 0.2f, -0.3f}, {0.0f, 1.0f, 0.1f}, 38.5f};
   scene.camera_automatic = true;
   scene.materials.push_back(Material{"mirror", glm::vec3(0.1f, 0.2f, 0.3f),
@@ -215,7 +216,7 @@ TEST(SceneBytes, StartsWithMagicAndVersion) {
   const Bytes bytes = serialize_scene(small_scene());
   ASSERT_GE(bytes.size(), 12u);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 4), "RTCS");
-  EXPECT_EQ(bytes[4], 1);
+  EXPECT_EQ(bytes[4], 2);
   EXPECT_EQ(bytes[5] | bytes[6] | bytes[7], 0);
   EXPECT_EQ(std::string(bytes.begin() + 8, bytes.begin() + 12), "SCEN");
 }
@@ -256,8 +257,10 @@ TEST(SceneBytes, RejectsBadMagicVersionAndTrailingBytes) {
   bytes[0] = 'X';
   EXPECT_THAT(error_for(bytes), HasSubstr("scene.bin: magic at byte 0: not scene bytes"));
   bytes = good;
-  bytes[4] = 2;
-  EXPECT_THAT(error_for(bytes), HasSubstr("unsupported format version 2"));
+  bytes[4] = 1;  // version 1 had no intersector byte
+  EXPECT_THAT(error_for(bytes), HasSubstr("unsupported format version 1 (this build reads 2)"));
+  bytes[4] = 3;
+  EXPECT_THAT(error_for(bytes), HasSubstr("unsupported format version 3"));
   bytes = good;
   bytes.push_back(0);
   EXPECT_THAT(error_for(bytes), HasSubstr("1 trailing bytes"));
@@ -418,6 +421,9 @@ TEST(SceneBytes, RejectsSettingsAndSizesOutOfRange) {
       {"spp must be in [1, 4096], got 0", [](Scene& s) { s.settings.spp = 0; }},
       {"spp must be in [1, 4096], got 4097", [](Scene& s) { s.settings.spp = 4097; }},
       {"min_weight must be in [0, 1]", [](Scene& s) { s.settings.min_weight = std::nanf(""); }},
+      {"settings at byte", [](Scene& s) { s.settings.intersector = static_cast<Intersector>(2); }},
+      {"intersector must be 0 (wald) or 1 (watertight), got 2",
+       [](Scene& s) { s.settings.intersector = static_cast<Intersector>(2); }},
   };
   for (const auto& [expected, spoil] : cases) {
     Scene scene = small_scene();
@@ -434,10 +440,10 @@ TEST(SceneBytes, RejectsSettingsAndSizesOutOfRange) {
 TEST(SceneBytes, RejectsBooleansOtherThanZeroOrOne) {
   const Scene scene = small_scene();
   Bytes bytes = serialize_scene(scene);
-  // SCEN: name, source, width, height, background, ambient, max_depth, min_weight, spp, then
-  // camera_automatic.
+  // SCEN: name, source, width, height, background, ambient, max_depth, min_weight, spp,
+  // intersector, then camera_automatic.
   const std::size_t at =
-      after_tag(bytes, "SCEN") + 4 + scene.name.size() + 4 + 4 + 4 + 12 + 12 + 4 + 4 + 4;
+      after_tag(bytes, "SCEN") + 4 + scene.name.size() + 4 + 4 + 4 + 12 + 12 + 4 + 4 + 4 + 1;
   ASSERT_EQ(bytes[at], 0);
   bytes[at] = 2;
   EXPECT_THAT(error_for(bytes), HasSubstr("camera_automatic at byte " + std::to_string(at) +
