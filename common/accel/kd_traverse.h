@@ -38,6 +38,11 @@ struct HitPacket {
 
 inline constexpr int kNextAxis[5] = {1, 2, 0, 1, 2};
 
+/// How far (relative) past a closest hit a stacked subtree's segment may start and still be
+/// visited: 2^-16 (1.5e-5) covers the float test's t error except for rays within ~1e-5 rad
+/// of a triangle's plane.
+inline constexpr float kPopSlack = 0x1p-16f;
+
 /// Wald's test (2001, section 2.2) against one triangle for the active lanes. kOcclusion:
 /// any hit in (t_min, t_max) sets `occluded`; otherwise closer hits replace `hit`.
 template <int N, bool kOcclusion>
@@ -304,7 +309,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   };
   Entry stack[64];
   int depth = 0;
-  vbool<N> done(false);
+  [[maybe_unused]] vbool<N> done(false);
   std::uint32_t index = 0;
 
   for (;;) {
@@ -349,20 +354,30 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         if (none(active)) break;
       }
     }
-    // A lane is finished once it is occluded, or its closest hit lies strictly inside this
-    // leaf's segment: every later leaf starts beyond it. A hit exactly on the far boundary
-    // goes on into the next leaf, where a triangle at the same t may win the tie (higher id):
-    // that keeps the answer independent of where the tree put its planes. Empty leaves count.
+    // An occluded lane is finished. A closest-hit lane skips a stacked subtree only when its
+    // hit lies before the subtree's segment, with a slack (decided per entry when it is
+    // popped, so a ray lying in a split plane, whose NaN split gives both children the whole
+    // segment, still visits the second child). A hit exactly on a leaf's far plane thus goes
+    // on into the next leaf, where a triangle at the same t may win the tie (higher id). The
+    // slack covers the float test's own error: it accepts points a rounding error outside a
+    // triangle (at an edge or shared vertex; t off by ~1e-6 relative for rays grazing the
+    // plane), so outside the leaves that reference it, and a nearer triangle's leaf may start
+    // just after the hit already found. With it the answer is the brute-force loop's, whatever
+    // the tree's planes (tests/stress: fans, grazing rays, rays in split planes).
     if constexpr (kOcclusion) {
       done |= occluded;
-    } else {
-      done |= active & (hit.t < far);
     }
 
     for (;;) {
       if (depth == 0) return;
       const Entry& e = stack[--depth];
-      const unsigned lanes = e.mask & ~bits(done);
+      unsigned lanes;
+      if constexpr (kOcclusion) {
+        lanes = e.mask & ~bits(done);
+      } else {
+        const vfloat<N> reach_t = hit.t + max(hit.t, -hit.t) * vfloat<N>(kPopSlack);
+        lanes = e.mask & bits(vfloat<N>::load(e.near) <= reach_t);
+      }
       if (lanes != 0) {
         active = vbool<N>::from_bits(lanes);
         index = e.node;

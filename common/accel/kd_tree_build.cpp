@@ -60,31 +60,49 @@ struct BuildContext {
   int max_depth = 0;
   int bins = 0;                 // binned SAH resolution per axis
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
+  float sah_scale = 1.0f;       // see sah_scale_for()
 };
+
+// SAH areas are computed with every length multiplied by this power of two: 1 for scenes whose
+// extent lies in [2^-30, 2^30] (exact, so those trees are unchanged), otherwise the scale that
+// brings the root's largest extent to [1, 2). Without it a scene 1e30 across overflows the
+// area to inf (SAH cost NaN: one leaf of everything) and one 1e-30 across underflows it to 0.
+float sah_scale_for(const Aabb& root) {
+  const glm::vec3 e = root.extent();
+  const float m = std::max({e.x, e.y, e.z});
+  if (!(m > 0.0f) || !std::isfinite(m) || (m >= 0x1p-30f && m <= 0x1p30f)) return 1.0f;
+  return std::ldexp(1.0f, -std::ilogb(m));
+}
+
+float scaled_area(const Aabb& box, float scale) {
+  if (box.empty()) return 0.0f;
+  const glm::vec3 e = box.extent() * scale;
+  return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
 
 // SAH cost of cutting `box` at `pos` along `axis` (Wald & Havran 2006, section 3), with the
 // areas of the two halves written as the box's cross-section plus the cut length times the
 // perimeter of that cross-section.
 class SahAxis {
  public:
-  SahAxis(const KdBuildOptions& options, const Aabb& box, int axis, float inv_area)
+  SahAxis(const KdBuildOptions& options, const Aabb& box, int axis, float inv_area, float scale)
       : lo_(box.lo[axis]), hi_(box.hi[axis]), k_t_(options.traversal_cost),
-        k_i_(options.intersection_cost * inv_area), bonus_(1.0f - options.empty_bonus) {
-    const glm::vec3 e = box.extent();
+        k_i_(options.intersection_cost * inv_area), bonus_(1.0f - options.empty_bonus), scale_(scale) {
+    const glm::vec3 e = box.extent() * scale;
     const float du = e[(axis + 1) % 3], dv = e[(axis + 2) % 3];
     cross_ = du * dv;
     perimeter_ = du + dv;
   }
   [[nodiscard]] float cost(float pos, std::size_t n_left, std::size_t n_right) const {
-    const float area_left = 2.0f * (cross_ + (pos - lo_) * perimeter_);
-    const float area_right = 2.0f * (cross_ + (hi_ - pos) * perimeter_);
+    const float area_left = 2.0f * (cross_ + ((pos - lo_) * scale_) * perimeter_);
+    const float area_right = 2.0f * (cross_ + ((hi_ - pos) * scale_) * perimeter_);
     float c = k_t_ + k_i_ * (area_left * static_cast<float>(n_left) + area_right * static_cast<float>(n_right));
     if (n_left == 0 || n_right == 0) c *= bonus_;
     return c;
   }
 
  private:
-  float lo_, hi_, k_t_, k_i_, bonus_, cross_ = 0, perimeter_ = 0;
+  float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
 };
 
 // A subtree swept exactly, laid out as the final tree will be (children adjacent, depth
@@ -178,10 +196,10 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
 // One sweep over an axis's sorted events (Wald & Havran 2006, section 4.2). The events may be
 // a window of the axis: `n_left` references start and `n_right` end beyond everything before it.
 SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::size_t size, std::size_t n_left,
-                         std::size_t n_right, const Aabb& box, int axis, float inv_area) {
+                         std::size_t n_right, const Aabb& box, int axis, float inv_area, float scale) {
   SplitChoice best;
   if (!(box.hi[axis] > box.lo[axis])) return best;
-  const SahAxis sah(options, box, axis, inv_area);
+  const SahAxis sah(options, box, axis, inv_area, scale);
   const float lo = box.lo[axis], hi = box.hi[axis];
   for (std::size_t i = 0; i < size;) {
     const float pos = ev[i].pos;
@@ -246,14 +264,14 @@ class BlockBuilder {
             int depth) {
     const KdBuildOptions& options = ctx_.options;
     out_.max_depth = std::max(out_.max_depth, depth);
-    const float area = box.area();
+    const float area = scaled_area(box, ctx_.sah_scale);
     SplitChoice split;
     if (depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
       const float inv_area = 1.0f / area;
       for (int axis = 0; axis < 3; ++axis) {
         // The earliest axis wins a tie.
         const SplitChoice c =
-            best_on_axis(options, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
+            best_on_axis(options, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area, ctx_.sah_scale);
         if (c.cost < split.cost) split = c;
       }
     }
@@ -436,7 +454,7 @@ class TopBuilder {
   // counts left of every boundary above its lower bound's bin and right of every boundary at
   // or below its upper bound's bin. The counts are estimates; partition() is exact.
   [[nodiscard]] SplitChoice binned_split(const std::vector<std::uint32_t>& tris, const Aabb& box) const {
-    const float area = box.area();
+    const float area = scaled_area(box, ctx_.sah_scale);
     if (!(area > 0.0f)) return SplitChoice{};
     const int bins = ctx_.bins;
     const glm::vec3 extent = box.extent();
@@ -480,7 +498,7 @@ class TopBuilder {
     int best_bin[3] = {-1, -1, -1};
     for (int axis = 0; axis < 3; ++axis) {
       if (!(scale[axis] > 0.0f)) continue;
-      const SahAxis sah(ctx_.options, box, axis, inv_area);
+      const SahAxis sah(ctx_.options, box, axis, inv_area, ctx_.sah_scale);
       std::size_t n_left = 0, n_right = n;
       for (int i = 1; i < bins; ++i) {
         n_left += b.start[axis][i - 1];
@@ -555,7 +573,7 @@ class TopBuilder {
     } else {
       collect(0);
     }
-    const float inv_area = 1.0f / box.area();
+    const float inv_area = 1.0f / scaled_area(box, ctx_.sah_scale);
     std::vector<Event> buffer;
     for (int axis = 0; axis < 3; ++axis) {
       if (first[axis] == last[axis]) continue;
@@ -568,7 +586,7 @@ class TopBuilder {
       }
       // Equal events are interchangeable, so the sort's order among them cannot matter.
       sort_events(ev.data(), ev.size(), buffer);
-      const SplitChoice exact = best_on_axis(ctx_.options, ev.data(), ev.size(), n_left, n_right, box, axis, inv_area);
+      const SplitChoice exact = best_on_axis(ctx_.options, ev.data(), ev.size(), n_left, n_right, box, axis, inv_area, ctx_.sah_scale);
       if (exact.cost < best[axis].cost) best[axis] = exact;
     }
   }
@@ -678,8 +696,8 @@ struct Placer {
 };
 
 // Tree statistics in depth-first order, so the floating-point sums do not depend on threads.
-void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOptions& options, KdBuildStats& stats,
-               double& cost_area) {
+void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOptions& options, float scale,
+               KdBuildStats& stats, double& cost_area) {
   if (t.axis < 0) {
     stats.leaves += t.block.leaves;
     stats.empty_leaves += t.block.empty_leaves;
@@ -688,12 +706,12 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
     return;
   }
   stats.max_depth = std::max(stats.max_depth, depth);
-  cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(box.area());
+  cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(scaled_area(box, scale));
   Aabb left_box = box, right_box = box;
   left_box.hi[t.axis] = t.split;
   right_box.lo[t.axis] = t.split;
-  add_stats(*t.child[0], left_box, depth + 1, options, stats, cost_area);
-  add_stats(*t.child[1], right_box, depth + 1, options, stats, cost_area);
+  add_stats(*t.child[0], left_box, depth + 1, options, scale, stats, cost_area);
+  add_stats(*t.child[1], right_box, depth + 1, options, scale, stats, cost_area);
 }
 
 }  // namespace
@@ -846,7 +864,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (max_depth <= 0) max_depth = static_cast<int>(8.0 + 1.3 * std::log2(static_cast<double>(count)));
   max_depth = std::clamp(max_depth, 1, 60);
 
-  BuildContext ctx{options, tri_box, max_depth, kBins, kExactBelow};
+  BuildContext ctx{options, tri_box, max_depth, kBins, kExactBelow, sah_scale_for(root)};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
@@ -858,8 +876,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   tree.prim_refs_.resize(top->refs);
   Placer{tree.nodes_.data(), tree.prim_refs_.data()}.place(*top, 0, 1, 0);
   double cost_area = 0.0;
-  add_stats(*top, root, 0, options, tree.stats_, cost_area);
-  const float root_area = root.area();
+  add_stats(*top, root, 0, options, ctx.sah_scale, tree.stats_, cost_area);
+  const float root_area = scaled_area(root, ctx.sah_scale);
   tree.stats_.sah_cost = root_area > 0.0f ? cost_area / static_cast<double>(root_area) : 0.0;
   top.reset();
 

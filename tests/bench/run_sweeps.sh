@@ -14,6 +14,7 @@ out=tests/bench/results/sweep
 mkdir -p "$out"
 for view in $(find "$scenes" -name 'view*.json' | sort); do
   name=$(basename "$(dirname "$view")")
+  case $(basename "$view") in view-*.json) name=$(basename "$view" .json); name=${name#view-} ;; esac
   args=(--sweep "$out/$name")
   [ "$name" = "$main_scene" ] || args+=(--sweep-quick)
   echo "rtc-bench $view ${args[*]}" >&2

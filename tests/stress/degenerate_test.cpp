@@ -144,6 +144,9 @@ TEST(StressDegenerate, HugeTrianglesSpanningTheScene) {
   // Rays only inside the small region (random_rays would start them 1e30 away).
   const KdTree tree = KdTree::build(s.positions, s.triangles);
   std::printf("huge triangles: %s\n", tree.stats().to_string().c_str());
+  // Coordinates up to 1e30 once overflowed the SAH areas (cost NaN, one leaf of everything).
+  EXPECT_TRUE(std::isfinite(tree.stats().sah_cost)) << tree.stats().to_string();
+  EXPECT_GT(tree.stats().leaves, 1u) << tree.stats().to_string();
   const BruteForce oracle(s.positions, s.triangles);
   Aabb box;
   box.extend(glm::vec3(-1.0f));
@@ -162,7 +165,14 @@ TEST(StressDegenerate, HugeTrianglesSpanningTheScene) {
   EXPECT_EQ(check_hit_sanity(s.positions, s.triangles, rays, hits, "huge triangles"), 0u);
 }
 
-// Fails: see tests/stress/README.md ("early termination on boundary hits").
+// At the shared vertex of 100 K slivers, Wald's test accepts a rounding error's worth of
+// "hits" on slivers the exact ray never touches; the kd-tree tests only the slivers referenced
+// along the ray, so it may pick another of them: accepted only as such (EdgeRounding).
+// Disabled: one ray of 1200 (ray 133, within 1e-4 of the centre, where the two perpendicular
+// fans cross) still misses an interior hit on a sliver of the second fan (triangle 144642,
+// beta = gamma = 2^-14, t 1.0000193) and returns the first fan's edge hit at t 1.0000293.
+// Not yet diagnosed (build clipping of slivers 1e-8 wide near the vertex is the suspect);
+// tests/stress/README.md. The other 1199 rays agree or differ only by edge rounding.
 TEST(StressDegenerate, DISABLED_HundredThousandTrianglesSharingOneVertex) {
   // A closed fan: 100 K slivers (angle 2 pi / 1e5 each) around (0.1, 0.2, 0.3) in a tilted
   // plane, plus a second fan sharing the same centre in a perpendicular plane. Rays aimed at
@@ -189,16 +199,16 @@ TEST(StressDegenerate, DISABLED_HundredThousandTrianglesSharingOneVertex) {
   std::mt19937 rng(127);
   std::uniform_real_distribution<float> d(-1.0f, 1.0f);
   std::vector<RayQuery> rays;
-  for (int i = 0; i < 1500; ++i) {
+  for (int i = 0; i < 600; ++i) {
     RayQuery r;
     r.org = centre + 2.0f * glm::vec3(d(rng), d(rng), d(rng));
     // Half exactly at the shared vertex, half within 1e-4 of it.
     r.dir = centre + (i % 2 ? 1e-4f * glm::vec3(d(rng), d(rng), d(rng)) : glm::vec3(0.0f)) - r.org;
     rays.push_back(r);
   }
-  const std::vector<RayQuery> aimed = rays_at_triangles(131, 1500, s, bounds_of(s));
+  const std::vector<RayQuery> aimed = rays_at_triangles(131, 600, s, bounds_of(s));
   rays.insert(rays.end(), aimed.begin(), aimed.end());
-  const Agreement a = expect_agrees_with_brute_force(tree, oracle, rays, "fan");
+  const Agreement a = expect_agrees_with_brute_force(tree, oracle, rays, "fan", EdgeRounding::Explained);
   std::printf("fan: %s\n", a.summary().c_str());
   EXPECT_EQ(a.mismatches, 0u);
   std::vector<RayHit> hits(rays.size());

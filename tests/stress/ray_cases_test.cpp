@@ -65,9 +65,9 @@ const Fixture& fixture() {
   return f;
 }
 
-void run(const std::vector<RayQuery>& rays, const std::string& what) {
+void run(const std::vector<RayQuery>& rays, const std::string& what, EdgeRounding edges = EdgeRounding::Exact) {
   const Fixture& f = fixture();
-  const Agreement a = expect_agrees_with_brute_force(f.tree, f.oracle, rays, what);
+  const Agreement a = expect_agrees_with_brute_force(f.tree, f.oracle, rays, what, edges);
   std::vector<RayHit> hits(rays.size());
   trace_kernels().intersect(f.tree, rays.data(), hits.data(), rays.size(), true);
   EXPECT_EQ(check_hit_sanity(f.soup.positions, f.soup.triangles, rays, hits, what), 0u);
@@ -133,8 +133,10 @@ TEST(StressRays, OriginsOnSplitPlanesCrossingThePlaneAgreeWithBruteForce) {
   run(split_plane_rays(47, false), "origins on split planes, crossing");  // seed 47
 }
 
-// Fails: see the report in tests/stress/README.md ("rays lying in a split plane").
-TEST(StressRays, DISABLED_OriginsOnSplitPlanesLyingInThePlaneAgreeWithBruteForce) {
+// Rays lying in a split plane get a NaN split distance and visit both children with the whole
+// segment; the traversal used to drop the second child after a hit in the first (576 of 5630
+// rays differed); it now decides per stacked subtree (tests/stress/README.md).
+TEST(StressRays, OriginsOnSplitPlanesLyingInThePlaneAgreeWithBruteForce) {
   run(split_plane_rays(48, true), "origins on split planes, in the plane");  // seed 48
 }
 
@@ -162,8 +164,10 @@ TEST(StressRays, OriginsOnTriangleEdgesAndVerticesAgreeWithBruteForce) {
   run(rays, "origins on edges and vertices");
 }
 
-// Fails: see tests/stress/README.md ("early termination on an inexact t").
-TEST(StressRays, DISABLED_RaysGrazingATrianglesPlaneAgreeWithBruteForce) {
+// The pop slack of the traversal (kd_traverse.h) brought the differences from 504 to 144 x 6;
+// those left are the float test's rounding at the edges of neighbours the ray lies in or
+// grazes (tests/stress/README.md), accepted only as such (EdgeRounding::Explained).
+TEST(StressRays, RaysGrazingATrianglesPlaneAgreeWithBruteForce) {
   // Seed 59. From a point in a triangle's plane outside it, towards its centroid, tilted off
   // the plane by 0, 1e-7, 1e-5, 1e-3 of the direction's length (den ~ 0: t is huge or NaN).
   const Fixture& f = fixture();
@@ -183,7 +187,7 @@ TEST(StressRays, DISABLED_RaysGrazingATrianglesPlaneAgreeWithBruteForce) {
     r.dir = along + n * (glm::length(along) * tilt[i % 4] * (i % 8 < 4 ? 1.0f : -1.0f));
     rays.push_back(r);
   }
-  run(rays, "grazing rays");
+  run(rays, "grazing rays", EdgeRounding::Explained);
 }
 
 TEST(StressRays, PacketsWithMixedDirectionSignsAgreeWithBruteForce) {
