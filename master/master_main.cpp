@@ -24,7 +24,7 @@ int run(int argc, char** argv) {
   CLI::App app{"rtc-master: render frames of a scene on rtc-worker processes connected over TCP"};
   rtc::SceneCliOptions scene_options;
   rtc::MasterOptions o;
-  std::string frames_text, wire_text, compress_text = "none", token_file, log_level = "info";
+  std::string frames_text, wire_text, compress_text = std::string(rtc::compression_name(rtc::kDefaultCompression)), token_file, log_level = "info";
   bool exr_float = false, no_depth = false, no_normal = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--listen", o.listen, "HOST:PORT to accept workers on; port 0 picks a free one; a non-loopback "

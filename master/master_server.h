@@ -19,7 +19,7 @@ struct MasterOptions {
   std::string token;                      ///< empty: no authentication (loopback only)
   int tile_size = 32;
   WireFormat wire = WireFormat::Rgba8;
-  Compression compression = Compression::None;
+  Compression compression = kDefaultCompression;
   std::uint8_t channels = 0;  ///< kChannelDepth / kChannelNormal carried for EXR output
   double link_mbps = 0;       ///< 0: measure on the first worker's connection
   int min_workers = 1;        ///< no frame starts before this many workers are ready

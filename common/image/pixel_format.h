@@ -22,6 +22,12 @@ enum class WireFormat : std::uint8_t {
 };
 enum class Compression : std::uint8_t { None = 0, Lz4 = 1, Zstd = 2 };
 
+/// The shipped default (rtc-master --compress), chosen from the time/error sweep
+/// (tests/bench/results/sweep): lz4 cuts rgba8 tiles ~3x for ~1-2 ms of codec time per 512x512
+/// frame and no error, so it is on the Pareto front on every shared scene; zstd saves a few
+/// more bytes (~4.5x) for more CPU, worth it on links slower than ~100 Mbit/s.
+inline constexpr Compression kDefaultCompression = Compression::Lz4;
+
 /// Optional channels after RGBA (bit flags): depth is always float32 (as in EXR files), the
 /// normal in the wire format's type (half or float). Not allowed with Rgba8.
 inline constexpr std::uint8_t kChannelDepth = 1;

@@ -62,7 +62,7 @@ def main():
             "set terminal pngcairo enhanced size 1200,800 font 'sans,11'",
             f"set output '{args.png}'",
             f"set title '{title}'",
-            "set logscale x",
+            "set logscale xy",
             "set format x '10^{%L}'",
             "set xlabel 'RMSE against the double-precision reference (sRGB-encoded, 0..1)'",
             "set ylabel 'time for one frame from scratch, ms (build + render + codec + 100 Mbit/s link)'",

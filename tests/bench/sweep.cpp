@@ -35,8 +35,8 @@ struct Variant {
   Isa isa = Isa::Sse42;
   bool packets = true;
   KdBuildOptions kd;
-  WireFormat wire = WireFormat::Rgba8;
-  Compression compression = Compression::None;
+  WireFormat wire = WireFormat::Rgba8;  // rtc-master's default for 8-bit output
+  Compression compression = kDefaultCompression;
   bool is_default = false;
 };
 
