@@ -14,6 +14,18 @@ import sys
 import tempfile
 
 
+def nice_tics(lo, hi):
+    """1-2-3-5 steps per decade between lo and hi, as a gnuplot tic list."""
+    import math
+    out = []
+    for e in range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1):
+        for m in (1, 2, 3, 5):
+            v = m * 10.0 ** e
+            if lo <= v <= hi:
+                out.append(f'"{v:g}" {v:g}')
+    return "(" + ", ".join(out) + ")"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("csv")
@@ -63,7 +75,10 @@ def main():
             f"set output '{args.png}'",
             f"set title '{title}'",
             "set logscale xy",
-            "set format x '10^{%L}'",
+            f"set yrange [{min(float(r['total_ms']) for r in rows) * 0.85:.4g}:{max(float(r['total_ms']) for r in rows) * 1.15:.4g}]",
+            f"set xrange [{min(float(r['rmse']) for r in rows) * 0.8:.4g}:{max(float(r['rmse']) for r in rows) * 1.25:.4g}]",
+            "set ytics " + nice_tics(min(float(r['total_ms']) for r in rows) * 0.85, max(float(r['total_ms']) for r in rows) * 1.15),
+            "set xtics " + nice_tics(min(float(r['rmse']) for r in rows) * 0.8, max(float(r['rmse']) for r in rows) * 1.25),
             "set xlabel 'RMSE against the double-precision reference (sRGB-encoded, 0..1)'",
             "set ylabel 'time for one frame from scratch, ms (build + render + codec + 100 Mbit/s link)'",
             "set key outside right top",
