@@ -177,14 +177,6 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
   }
 }
 
-// Sample positions inside a pixel: sample 0 is the centre (CAMERA.md), later ones follow the
-// R2 low-discrepancy sequence. Computed in double from the sample index only.
-inline void sample_offset(int s, double& sx, double& sy) {
-  constexpr double kA1 = 0.7548776662466927, kA2 = 0.5698402909980532;
-  sx = std::fmod(0.5 + kA1 * s, 1.0);
-  sy = std::fmod(0.5 + kA2 * s, 1.0);
-}
-
 // Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1.
 template <int N>
 void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts) {

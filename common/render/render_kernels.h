@@ -1,6 +1,7 @@
 // Per-ISA tile kernels behind rtc::Renderer, chosen at run time.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "common/base/isa.h"
@@ -23,6 +24,15 @@ struct TileRayCounts {
   }
   [[nodiscard]] std::uint64_t total() const { return primary + shadow + reflection; }
 };
+
+/// Position of sample `s` inside a pixel: sample 0 is the centre (CAMERA.md), later ones follow
+/// the R2 low-discrepancy sequence. Computed in double from the sample index only, so every
+/// renderer (and the double-precision reference) places its samples the same way.
+inline void sample_offset(int s, double& sx, double& sy) {
+  constexpr double kA1 = 0.7548776662466927, kA2 = 0.5698402909980532;
+  sx = std::fmod(0.5 + kA1 * s, 1.0);
+  sy = std::fmod(0.5 + kA2 * s, 1.0);
+}
 
 /// Entry points of one ISA. `render_tile` writes pixels [x0, x0+w) x [y0, y0+h) of the
 /// frame into `out` (already w x h; depth/normal filled when present).

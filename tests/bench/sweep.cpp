@@ -165,11 +165,6 @@ double median_ms(int reps, Fn&& fn) {
   return ms[ms.size() / 2];
 }
 
-double to_display(float linear) {
-  const double v = std::clamp(static_cast<double>(linear), 0.0, 1.0);
-  return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
-}
-
 /// Prints the few pixels furthest from the reference and writes the per-pixel error (largest
 /// sRGB channel difference) as an EXR next to the CSV, so a user can see where error lives.
 void report_worst_pixels(const std::string& label, const Image& image, const Image& reference,
@@ -179,7 +174,7 @@ void report_worst_pixels(const std::string& label, const Image& image, const Ima
   for (int y = 0; y < image.height; ++y) {
     for (int x = 0; x < image.width; ++x) {
       double d = 0.0;
-      for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(to_display(image.pixel(x, y)[c]) - to_display(reference.pixel(x, y)[c])));
+      for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(test::display_value(image.pixel(x, y)[c]) - test::display_value(reference.pixel(x, y)[c])));
       float* m = map.pixel(x, y);
       m[0] = m[1] = m[2] = static_cast<float>(d);
       m[3] = 1.0f;

@@ -12,6 +12,7 @@
 
 #include "common/base/error.h"
 #include "common/image/image.h"
+#include "common/render/render_kernels.h"
 
 namespace rtc::test {
 namespace {
@@ -362,9 +363,8 @@ Image reference_render(const FrameState& fs, const ReferenceTracer& tracer, cons
       for (int x = 0; x < fs.width; ++x) {
         glm::dvec3 sum(0.0);
         for (int s = 0; s < spp; ++s) {
-          // The renderer's sample positions (render_kernels.cpp sample_offset).
-          constexpr double kA1 = 0.7548776662466927, kA2 = 0.5698402909980532;
-          const double sx = std::fmod(0.5 + kA1 * s, 1.0), sy = std::fmod(0.5 + kA2 * s, 1.0);
+          double sx, sy;
+          sample_offset(s, sx, sy);
           const RayD r = fs.camera_rays.ray_double(x, y, sx, sy);
           sum += radiance(c, r.origin, r.dir, kNoHit, 0, glm::dvec3(1.0));
         }
@@ -390,14 +390,10 @@ Image reference_render(const FrameState& fs, const ReferenceTracer& tracer, cons
   return out;
 }
 
-namespace {
-
-double to_display(float linear) {
+double display_value(float linear) {
   const double v = std::clamp(static_cast<double>(linear), 0.0, 1.0);
   return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
 }
-
-}  // namespace
 
 std::uint64_t count_non_finite(const Image& image) {
   std::uint64_t bad = 0;
@@ -423,7 +419,7 @@ ImageError image_error(const Image& image, const Image& reference) {
       const float v = image.rgba[4 * i + static_cast<std::size_t>(ch)];
       // A NaN counts as the largest possible error.
       const double d = std::isnan(v) ? 1.0
-                                     : std::abs(to_display(v) - to_display(reference.rgba[4 * i + static_cast<std::size_t>(ch)]));
+                                     : std::abs(display_value(v) - display_value(reference.rgba[4 * i + static_cast<std::size_t>(ch)]));
       sum2 += d * d;
       e.max_abs = std::max(e.max_abs, d);
       pixel_over = pixel_over || d > 1.0 / 255.0;

@@ -87,6 +87,9 @@ struct ImageError {
   std::uint64_t non_finite = 0;  ///< NaN or Inf values anywhere in `image` (RGBA, depth, normal)
 };
 
+/// A linear channel value as the error measures see it: clamped to [0, 1], sRGB-encoded.
+[[nodiscard]] double display_value(float linear);
+
 /// Throws rtc::Error when the sizes differ.
 [[nodiscard]] ImageError image_error(const Image& image, const Image& reference);
 
