@@ -60,11 +60,7 @@ void Connection::read_header() {
     reading_ = false;
     if (closed_) return;
     if (closing_after_flush_) {
-      if (ec) {
-        finish(pending_close_reason_);
-      } else {
-        drain();
-      }
+      continue_drain(ec);
       return;
     }
     if (ec) {
@@ -102,11 +98,7 @@ void Connection::read_payload(protocol::Header header) {
     reading_ = false;
     if (closed_) return;
     if (closing_after_flush_) {
-      if (ec) {
-        finish(pending_close_reason_);
-      } else {
-        drain();
-      }
+      continue_drain(ec);
       return;
     }
     if (ec) {
@@ -208,12 +200,18 @@ void Connection::drain() {
   socket_.async_read_some(asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
     reading_ = false;
     if (closed_) return;
-    if (ec) {
-      finish(pending_close_reason_);
-    } else {
-      drain();
-    }
+    continue_drain(ec);
   });
+}
+
+void Connection::continue_drain(const asio::error_code& ec) {
+  // After close_after_flush(): the peer closing (or any read error) ends the connection,
+  // anything it still sends is discarded by the next read.
+  if (ec) {
+    finish(pending_close_reason_);
+  } else {
+    drain();
+  }
 }
 
 void Connection::finish(const std::string& reason) {

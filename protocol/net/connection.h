@@ -90,6 +90,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void read_payload(protocol::Header header);
   void write_next();
   void drain();
+  void continue_drain(const asio::error_code& ec);
   void finish(const std::string& reason);
 
   asio::ip::tcp::socket socket_;
