@@ -2,7 +2,6 @@
 // of rtc's tracer on one scene, optionally beside Embree 3 tracing the same rays in the same
 // run (--compare-embree), with per-pixel agreement. Speed is reported, never asserted.
 #include <algorithm>
-#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -29,6 +28,7 @@
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
+#include "tests/bench/bench_timing.h"
 #include "tests/bench/sweep.h"
 
 namespace {
@@ -132,28 +132,7 @@ void embree_occluded(void* context, const RayQuery* rays, std::uint8_t* out, std
   static_cast<const EmbreeScene*>(context)->occluded(rays, out, count, packet_mode(count));
 }
 
-// --cpu-time: time sections by the process's CPU time instead of the wall clock, for A/B
-// comparisons on a machine that is busy with other work (descheduled time is not counted).
-bool g_cpu_time = false;
-
-double cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
-
-template <typename Fn>
-double time_median_ms(int reps, Fn&& fn) {
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    rtc::Timer t;
-    const double c0 = cpu_ms();
-    fn();
-    ms.push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
-}
+using rtc::bench::time_median_ms;
 
 template <typename Fn>
 void for_chunks(const RayStream& s, Fn&& fn) {
@@ -236,7 +215,7 @@ int run(int argc, char** argv) {
   app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
-  app.add_flag("--cpu-time", g_cpu_time,
+  app.add_flag("--cpu-time", rtc::bench::g_cpu_time,
                "time by process CPU time (summed over threads), not wall time: for A/B runs on a busy machine");
   rtc::KdBuildOptions kd_options;
   app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);

@@ -19,6 +19,7 @@
 #include "common/image/image.h"
 #include "common/image/pixel_format.h"
 #include "common/render/renderer.h"
+#include "tests/bench/bench_timing.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
 #include "tests/support/reference_render.h"
@@ -153,32 +154,21 @@ Image through_wire(const Image& frame, WireFormat wire, Compression compression,
   return out;
 }
 
-template <typename Fn>
-double median_ms(int reps, Fn&& fn) {
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    Timer t;
-    fn();
-    ms.push_back(t.elapsed_ms());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
-}
-
 /// Prints the few pixels furthest from the reference and writes the per-pixel error (largest
-/// sRGB channel difference) as an EXR next to the CSV, so a user can see where error lives.
+/// sRGB channel difference, from image_error) as an EXR next to the CSV, so a user can see
+/// where error lives.
 void report_worst_pixels(const std::string& label, const Image& image, const Image& reference,
-                         const std::filesystem::path& dir) {
+                         const std::vector<double>& per_pixel, const std::filesystem::path& dir) {
   Image map(image.width, image.height);
   std::vector<std::pair<double, int>> worst;
   for (int y = 0; y < image.height; ++y) {
     for (int x = 0; x < image.width; ++x) {
-      double d = 0.0;
-      for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(test::display_value(image.pixel(x, y)[c]) - test::display_value(reference.pixel(x, y)[c])));
+      const int i = y * image.width + x;
+      const double d = per_pixel[static_cast<std::size_t>(i)];
       float* m = map.pixel(x, y);
       m[0] = m[1] = m[2] = static_cast<float>(d);
       m[3] = 1.0f;
-      worst.emplace_back(d, y * image.width + x);
+      worst.emplace_back(d, i);
     }
   }
   const std::size_t n = std::min<std::size_t>(5, worst.size());
@@ -208,15 +198,8 @@ void mark_pareto(std::vector<Result>& results) {
 /// The reference's primary visibility against Embree's on the renderer's own (float) camera
 /// rays through the pixel centres.
 nlohmann::json embree_cross_check(const FrameState& fs, const test::ReferenceTracer& ref) {
-  const std::size_t pixels = static_cast<std::size_t>(fs.width) * static_cast<std::size_t>(fs.height);
-  std::vector<RayQuery> rays(pixels);
-  for (int y = 0; y < fs.height; ++y) {
-    for (int x = 0; x < fs.width; ++x) {
-      const Ray r = fs.camera_rays.ray(x, y);
-      rays[static_cast<std::size_t>(y) * static_cast<std::size_t>(fs.width) + static_cast<std::size_t>(x)] =
-          RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()};
-    }
-  }
+  const std::vector<RayQuery> rays = test::pixel_centre_rays(fs.camera_rays);
+  const std::size_t pixels = rays.size();
   std::vector<RayHit> ours(pixels), theirs(pixels);
   for (std::size_t i = 0; i < pixels; ++i) {
     const test::RefHit h = ref.intersect(glm::dvec3(rays[i].org), glm::dvec3(rays[i].dir), 0.0,
@@ -294,13 +277,13 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
     // Build time: a fresh renderer per rep (prepare() reuses the tree of an unchanged scene).
     std::unique_ptr<Renderer> renderer;
     std::shared_ptr<const FrameState> state;
-    r.build_ms = median_ms(options.reps, [&] {
+    r.build_ms = time_median_ms(options.reps, [&] {
       state.reset();
       renderer = std::make_unique<Renderer>(s, ro);
       state = renderer->prepare(frame);
     });
     Image image;
-    r.render_ms = median_ms(options.reps, [&] {
+    r.render_ms = time_median_ms(options.reps, [&] {
       r.counts = TileRayCounts{};
       image = renderer->render_frame(*state, kTile, nullptr, &r.counts);
     });
@@ -308,8 +291,11 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
     const Image received = through_wire(image, v.wire, v.compression, r.wire_bytes, r.codec_ms);
     r.link_ms = static_cast<double>(r.wire_bytes) * 8.0 / kLinkBitsPerS * 1e3;
     r.total_ms = r.build_ms + r.render_ms + r.codec_ms + r.link_ms;
-    r.error = test::image_error(received, reference);
-    if (v.is_default || v.label == "max depth 64, min weight 0") report_worst_pixels(v.label, received, reference, options.out_dir);
+    std::vector<double> per_pixel;
+    r.error = test::image_error(received, reference, &per_pixel);
+    if (v.is_default || v.label == "max depth 64, min weight 0") {
+      report_worst_pixels(v.label, received, reference, per_pixel, options.out_dir);
+    }
     r.error.non_finite += raw_bad;
     if (r.error.non_finite > 0) ++bad_variants;
     std::printf("%-20s %-30s %9.1f %9.1f %8.1f %9llu %10.1f %10.1f %9.2e %8.2f %8.4f %7.3f%%%s\n", v.group.c_str(),

@@ -26,14 +26,7 @@ namespace {
 
 void check_against_embree(const Scene& scene, const std::string& label) {
   const auto fs = build_frame_state(scene, scene.animation.frame_begin, scene.settings, KdBuildOptions{});
-  std::vector<RayQuery> rays;
-  rays.reserve(static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height));
-  for (int y = 0; y < fs->height; ++y) {
-    for (int x = 0; x < fs->width; ++x) {
-      const Ray r = fs->camera_rays.ray(x, y);
-      rays.push_back(RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
-    }
-  }
+  const std::vector<RayQuery> rays = test::pixel_centre_rays(fs->camera_rays);
   std::vector<RayHit> ours(rays.size()), single(rays.size()), theirs(rays.size());
   trace_kernels().intersect(fs->geometry->tree, rays.data(), single.data(), rays.size(), false);
   refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), single.data(), rays.size());

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "common/base/error.h"
+#include "common/math/ray_offset.h"
 #include "common/render/renderer.h"
 #include "common/scene/load.h"
 #include "common/scene/mesh_builder.h"
@@ -24,17 +25,6 @@
 
 namespace rtc {
 namespace {
-
-std::vector<RayQuery> camera_rays(const FrameState& fs) {
-  std::vector<RayQuery> rays;
-  for (int y = 0; y < fs.height; ++y) {
-    for (int x = 0; x < fs.width; ++x) {
-      const Ray r = fs.camera_rays.ray(x, y);
-      rays.push_back(RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
-    }
-  }
-  return rays;
-}
 
 RayHit to_float(const test::RefHit& h, float t_max) {
   if (h.prim == kNoHit) return RayHit{t_max, 0.0f, 0.0f, kNoHit};
@@ -53,7 +43,7 @@ TEST_P(ReferenceView, AgreesWithEmbree) {
   set_resolution(scene, 256, 256);
   const auto fs = build_frame_state(scene, scene.animation.frame_begin, scene.settings, KdBuildOptions{});
   const test::ReferenceTracer ref(fs->geometry->positions, fs->geometry->triangles);
-  const std::vector<RayQuery> rays = camera_rays(*fs);
+  const std::vector<RayQuery> rays = test::pixel_centre_rays(fs->camera_rays);
   std::vector<RayHit> ours(rays.size()), theirs(rays.size());
   for (std::size_t i = 0; i < rays.size(); ++i) {
     ours[i] = to_float(ref.intersect(glm::dvec3(rays[i].org), glm::dvec3(rays[i].dir), 0.0, INFINITY), rays[i].t_max);
@@ -75,8 +65,7 @@ TEST_P(ReferenceView, AgreesWithEmbree) {
     glm::vec3 n = glm::normalize(glm::cross(b - a, cc - a));
     if (glm::dot(n, rays[i].dir) > 0.0f) n = -n;
     const glm::vec3 p = a * (1.0f - ours[i].beta - ours[i].gamma) + b * ours[i].beta + cc * ours[i].gamma;
-    const glm::vec3 o = p + n * (std::max({std::abs(a.x), std::abs(a.y), std::abs(a.z), std::abs(b.x), std::abs(b.y),
-                                           std::abs(b.z), std::abs(cc.x), std::abs(cc.y), std::abs(cc.z)}) / 65536.0f);
+    const glm::vec3 o = offset_ray_origin(p, n, vertex_magnitude(a, b, cc));  // the renderer's offset
     for (const PointLight& l : fs->lights) shadow.push_back(RayQuery{o, 0.0f, l.position - o, 1.0f});
   }
   std::vector<std::uint8_t> occ(shadow.size());

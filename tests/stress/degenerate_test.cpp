@@ -113,7 +113,7 @@ TEST(StressDegenerate, DuplicateAndCoplanarOverlappingTrianglesGoToTheHigherId) 
       for (const bool packets : {true, false}) {
         RayHit h;
         trace_kernels(isa).intersect(tree, &q, &h, 1, packets);
-        ASSERT_EQ(h.prim, highest) << isa_name(isa) << " packets " << packets << " " << describe(q) << ", "
+        ASSERT_EQ(h.prim, highest) << isa_name(isa) << " packets " << packets << " " << test::describe_ray(q) << ", "
                                    << covering << " triangles cover the point";
       }
     }

@@ -24,6 +24,7 @@
 #include "common/scene/mesh_builder.h"
 #include "common/scene/tessellate.h"
 #include "tests/stress/stress_support.h"
+#include "tests/support/hit_compare.h"
 
 namespace rtc::stress {
 namespace {
@@ -173,14 +174,8 @@ Tally measure(const Scene& scene, const std::string& what) {
   const auto fs = build_frame_state(scene, 0, scene.settings, KdBuildOptions{});
   const FrameGeometry& g = *fs->geometry;
   const TraceKernels& k = trace_kernels();
-  const int w = scene.width, h = scene.height;
-  std::vector<RayQuery> primary;
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const Ray r = fs->camera_rays.ray(x, y);
-      primary.push_back(RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
-    }
-  }
+  const int w = scene.width;
+  const std::vector<RayQuery> primary = test::pixel_centre_rays(fs->camera_rays);
   std::vector<RayHit> hits(primary.size());
   k.intersect(g.tree, primary.data(), hits.data(), primary.size(), true);
 
@@ -197,7 +192,7 @@ Tally measure(const Scene& scene, const std::string& what) {
   auto report = [&](const std::string& kind, const RayQuery& q, std::size_t pixel) {
     if (reported++ < 5) {
       ADD_FAILURE() << what << ": " << kind << " at pixel (" << pixel % static_cast<std::size_t>(w) << ", "
-                    << pixel / static_cast<std::size_t>(w) << "), secondary ray " << describe(q);
+                    << pixel / static_cast<std::size_t>(w) << "), secondary ray " << test::describe_ray(q);
     }
   };
   for (std::size_t i = 0; i < primary.size(); ++i) {

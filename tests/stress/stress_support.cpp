@@ -1,5 +1,6 @@
 // Stress-test support: the float brute-force oracle and the all-ISA agreement check.
 #include "tests/stress/stress_support.h"
+#include "tests/support/hit_compare.h"
 
 #include <gtest/gtest.h>
 
@@ -149,11 +150,6 @@ std::vector<Isa> available_isas() {
   return out;
 }
 
-std::string describe(const RayQuery& ray) {
-  return fmt::format("org ({:a}, {:a}, {:a}) dir ({:a}, {:a}, {:a}) t ({:a}, {:a})", ray.org.x, ray.org.y,
-                     ray.org.z, ray.dir.x, ray.dir.y, ray.dir.z, ray.t_min, ray.t_max);
-}
-
 std::string describe(const RayHit& hit) {
   if (hit.prim == kNoHit) return fmt::format("miss (t {:a})", hit.t);
   return fmt::format("triangle {} t {:a} ({}) beta {:a} gamma {:a}", hit.prim, hit.t, hit.t, hit.beta, hit.gamma);
@@ -197,7 +193,7 @@ Agreement expect_agrees_with_brute_force(const KdTree& tree, const BruteForce& o
         if (reported++ < 6) {
           ADD_FAILURE() << what << ": ray " << i << " (" << isa_name(isa) << ", "
                         << (packets ? fmt::format("{}-wide packets", k.packet_width) : std::string("single rays"))
-                        << ") " << describe(rays[i]) << "\n  kd-tree: " << describe(got[i]) << ", occluded "
+                        << ") " << test::describe_ray(rays[i]) << "\n  kd-tree: " << describe(got[i]) << ", occluded "
                         << int{got_occ[i]} << "\n  brute force: " << describe(want[i]) << ", occluded "
                         << int{want_occ[i]};
         }
@@ -241,7 +237,7 @@ std::uint64_t check_hit_sanity(std::span<const glm::vec3> positions, std::span<c
       }
     }
     if (why.empty()) continue;
-    if (bad++ < 6) ADD_FAILURE() << what << ": ray " << i << " " << describe(q) << ": " << describe(h) << ": " << why;
+    if (bad++ < 6) ADD_FAILURE() << what << ": ray " << i << " " << test::describe_ray(q) << ": " << describe(h) << ": " << why;
   }
   return bad;
 }

@@ -12,6 +12,7 @@
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
 #include "common/base/isa.h"
+#include "tests/support/hit_compare.h"
 
 namespace rtc::stress {
 
@@ -96,8 +97,7 @@ Agreement expect_agrees_with_brute_force(const KdTree& tree, const BruteForce& o
 std::uint64_t check_hit_sanity(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
                                std::span<const RayQuery> rays, std::span<const RayHit> hits, const std::string& what);
 
-/// Origin, direction (hex floats) and interval, for messages.
-[[nodiscard]] std::string describe(const RayQuery& ray);
+/// A hit for messages (rays: test::describe_ray in tests/support/hit_compare.h).
 [[nodiscard]] std::string describe(const RayHit& hit);
 
 /// Deterministic random rays: origins uniform in `box` enlarged by half its size, directions

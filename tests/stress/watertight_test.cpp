@@ -24,6 +24,7 @@
 #include "common/render/renderer.h"
 #include "common/scene/load.h"
 #include "common/scene/tessellate.h"
+#include "tests/support/hit_compare.h"
 
 namespace rtc {
 namespace {
@@ -152,9 +153,8 @@ Counts count_misses(const KdTree& tree, const std::vector<RayQuery>& rays, const
     c.unoccluded += occ[i] == 0 ? 1 : 0;
     c.at_vertices += miss && at_vertex[i] ? 1 : 0;
     if (report && (miss || occ[i] == 0) && shown++ < 5) {
-      ADD_FAILURE() << fmt::format("ray slipped through ({}, {}): org ({:a}, {:a}, {:a}) dir ({:a}, {:a}, {:a}), {}",
-                                   isa_name(k.isa), packets ? "packets" : "single rays", rays[i].org.x, rays[i].org.y,
-                                   rays[i].org.z, rays[i].dir.x, rays[i].dir.y, rays[i].dir.z,
+      ADD_FAILURE() << fmt::format("ray slipped through ({}, {}): {}, {}", isa_name(k.isa),
+                                   packets ? "packets" : "single rays", test::describe_ray(rays[i]),
                                    at_vertex[i] ? "at a vertex" : "at an edge");
     }
   }

@@ -142,4 +142,16 @@ std::string HitComparison::summary() const {
       100.0 * tie_fraction(), coplanar_ties, crossing_ties, edge_grazes, bad_ties);
 }
 
+std::vector<RayQuery> pixel_centre_rays(const CameraRays& camera) {
+  std::vector<RayQuery> rays;
+  rays.reserve(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()));
+  for (int y = 0; y < camera.height(); ++y) {
+    for (int x = 0; x < camera.width(); ++x) {
+      const Ray r = camera.ray(x, y);
+      rays.push_back(RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
+    }
+  }
+  return rays;
+}
+
 }  // namespace rtc::test

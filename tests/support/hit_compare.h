@@ -10,6 +10,7 @@
 #include <glm/glm.hpp>
 
 #include "common/accel/trace.h"
+#include "common/math/camera.h"
 
 namespace rtc::test {
 
@@ -67,6 +68,9 @@ HitComparison compare_hits(std::span<const glm::vec3> positions, std::span<const
 /// `min_bary` gets the smallest barycentric weight of the hit point.
 double ray_triangle_t(const RayQuery& ray, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
                       double* min_bary = nullptr);
+
+/// The primary rays through every pixel centre (CAMERA.md), row by row, with (0, inf).
+std::vector<RayQuery> pixel_centre_rays(const CameraRays& camera);
 
 /// "x=0x1.8p+0 ..." for failure messages: origin and direction as hex floats.
 std::string describe_ray(const RayQuery& ray);

@@ -403,7 +403,7 @@ std::uint64_t count_non_finite(const Image& image) {
   return bad;
 }
 
-ImageError image_error(const Image& image, const Image& reference) {
+ImageError image_error(const Image& image, const Image& reference, std::vector<double>* per_pixel) {
   if (image.width != reference.width || image.height != reference.height) {
     throw Error("image_error: image is " + std::to_string(image.width) + "x" + std::to_string(image.height) +
                 ", reference " + std::to_string(reference.width) + "x" + std::to_string(reference.height));
@@ -413,18 +413,20 @@ ImageError image_error(const Image& image, const Image& reference) {
   double sum2 = 0.0;
   std::uint64_t over = 0;
   const std::size_t pixels = static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
+  if (per_pixel != nullptr) per_pixel->assign(pixels, 0.0);
   for (std::size_t i = 0; i < pixels; ++i) {
-    bool pixel_over = false;
+    double pixel_max = 0.0;
     for (int ch = 0; ch < 3; ++ch) {
       const float v = image.rgba[4 * i + static_cast<std::size_t>(ch)];
       // A NaN counts as the largest possible error.
       const double d = std::isnan(v) ? 1.0
                                      : std::abs(display_value(v) - display_value(reference.rgba[4 * i + static_cast<std::size_t>(ch)]));
       sum2 += d * d;
-      e.max_abs = std::max(e.max_abs, d);
-      pixel_over = pixel_over || d > 1.0 / 255.0;
+      pixel_max = std::max(pixel_max, d);
     }
-    over += pixel_over ? 1 : 0;
+    e.max_abs = std::max(e.max_abs, pixel_max);
+    over += pixel_max > 1.0 / 255.0 ? 1 : 0;
+    if (per_pixel != nullptr) (*per_pixel)[i] = pixel_max;
   }
   const double n = 3.0 * static_cast<double>(std::max<std::size_t>(pixels, 1));
   e.rmse = std::sqrt(sum2 / n);

@@ -90,8 +90,10 @@ struct ImageError {
 /// A linear channel value as the error measures see it: clamped to [0, 1], sRGB-encoded.
 [[nodiscard]] double display_value(float linear);
 
-/// Throws rtc::Error when the sizes differ.
-[[nodiscard]] ImageError image_error(const Image& image, const Image& reference);
+/// Throws rtc::Error when the sizes differ. `per_pixel` (optional) gets each pixel's largest
+/// channel difference, row by row (the error map).
+[[nodiscard]] ImageError image_error(const Image& image, const Image& reference,
+                                     std::vector<double>* per_pixel = nullptr);
 
 /// Non-finite values anywhere in the image (RGBA, depth where not +inf background, normal).
 [[nodiscard]] std::uint64_t count_non_finite(const Image& image);

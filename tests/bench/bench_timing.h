@@ -1,0 +1,37 @@
+// Timing for rtc-bench and its sweep: medians over repetitions, by wall clock or (--cpu-time)
+// by the process's CPU time.
+#pragma once
+
+#include <algorithm>
+#include <ctime>
+#include <vector>
+
+#include "common/base/timer.h"
+
+namespace rtc::bench {
+
+/// --cpu-time: time sections by the process's CPU time instead of the wall clock, for A/B
+/// comparisons on a machine that is busy with other work (descheduled time is not counted).
+inline bool g_cpu_time = false;
+
+inline double cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+/// Median time of `reps` calls of `fn`, in ms.
+template <typename Fn>
+double time_median_ms(int reps, Fn&& fn) {
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) {
+    Timer t;
+    const double c0 = cpu_ms();
+    fn();
+    ms.push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
+  }
+  std::sort(ms.begin(), ms.end());
+  return ms[ms.size() / 2];
+}
+
+}  // namespace rtc::bench
