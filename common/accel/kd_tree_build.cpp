@@ -52,11 +52,14 @@ struct SplitChoice {
 constexpr int kBins = 256;
 constexpr std::size_t kExactBelow = 4096;
 
-// What every node of one build shares. A reference's bounds in a node are its triangle's
-// bounds clamped to the node's box: exactly the events the sweep would have inherited.
+// What every node of one build shares. In the binned top levels a reference's bounds in a
+// node are its triangle's bounds clamped to the node's box; in the exact sweep they are the
+// bounds of the triangle clipped to the node's box (clipped_bounds()).
 struct BuildContext {
   const KdBuildOptions& options;
   const std::vector<Aabb>& tri_box;
+  std::span<const glm::vec3> positions;
+  std::span<const glm::uvec3> triangles;
   int max_depth = 0;
   int bins = 0;                 // binned SAH resolution per axis
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
@@ -105,6 +108,76 @@ class SahAxis {
   float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
 };
 
+// Bounds of triangle `tri` clipped to `box` ("perfect splits", Wald & Havran 2006, section
+// 4.3), never smaller than the exact intersection: Sutherland-Hodgman in double against the
+// six planes (a point on a plane counts as inside, so a triangle lying in a face survives),
+// the result widened by far more than the double rounding of at most six clip steps
+// (2^-40 of the largest magnitude involved), rounded outward to float and intersected with
+// the clamped box. Where the clip comes out empty (a triangle that only touches the box, or
+// rounding) the clamped box is kept: a reference is never dropped here. `bounds` are the
+// reference's bounds so far (its triangle's box at first); the result lies inside them, so a
+// reference's bounds only shrink down the tree and its events never grow in number.
+Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box, const Aabb& bounds) {
+  const Aabb& t = ctx.tri_box[tri];
+  Aabb clamped;
+  clamped.lo = glm::max(bounds.lo, box.lo);
+  clamped.hi = glm::min(bounds.hi, box.hi);
+  if (glm::all(glm::greaterThanEqual(t.lo, box.lo)) && glm::all(glm::lessThanEqual(t.hi, box.hi))) return clamped;
+  // 3 vertices + one more per plane in exact arithmetic; rounding could add more, and a step
+  // emits at most two per vertex, so a polygon that could overflow keeps the clamped box.
+  constexpr int kMaxVerts = 32;
+  std::array<glm::dvec3, kMaxVerts> poly_a, poly_b;
+  glm::dvec3* poly = poly_a.data();
+  glm::dvec3* next = poly_b.data();
+  const glm::uvec3 idx = ctx.triangles[tri];
+  int n = 3;
+  for (int k = 0; k < 3; ++k) poly[k] = glm::dvec3(ctx.positions[idx[k]]);
+  for (int plane = 0; plane < 6 && n > 0; ++plane) {
+    if (2 * n > kMaxVerts) return clamped;
+    const int axis = plane >> 1;
+    const bool upper = plane & 1;
+    const double bound = upper ? box.hi[axis] : box.lo[axis];
+    auto inside = [&](const glm::dvec3& v) { return upper ? v[axis] <= bound : v[axis] >= bound; };
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      const glm::dvec3& a = poly[i];
+      const glm::dvec3& b = poly[(i + 1) % n];
+      const bool in_a = inside(a), in_b = inside(b);
+      if (in_a) next[m++] = a;
+      if (in_a != in_b) {
+        const double f = (bound - a[axis]) / (b[axis] - a[axis]);
+        glm::dvec3 x = a + f * (b - a);
+        x[axis] = bound;
+        next[m++] = x;
+      }
+    }
+    n = m;
+    std::swap(poly, next);
+  }
+  if (n == 0) return clamped;
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (int i = 0; i < n; ++i) {
+    lo = glm::min(lo, poly[i]);
+    hi = glm::max(hi, poly[i]);
+  }
+  const glm::dvec3 mag = glm::max(glm::max(glm::abs(glm::dvec3(t.lo)), glm::abs(glm::dvec3(t.hi))),
+                                  glm::max(glm::abs(glm::dvec3(box.lo)), glm::abs(glm::dvec3(box.hi))));
+  double m = std::max({mag.x, mag.y, mag.z});
+  if (!std::isfinite(m)) return clamped;
+  const double pad = std::ldexp(m, -40);
+  Aabb out;
+  for (int axis = 0; axis < 3; ++axis) {
+    float l = static_cast<float>(lo[axis] - pad);
+    if (static_cast<double>(l) > lo[axis] - pad) l = std::nextafter(l, -std::numeric_limits<float>::infinity());
+    float h = static_cast<float>(hi[axis] + pad);
+    if (static_cast<double>(h) < hi[axis] + pad) h = std::nextafter(h, std::numeric_limits<float>::infinity());
+    out.lo[axis] = std::max(l, clamped.lo[axis]);
+    out.hi[axis] = std::min(h, clamped.hi[axis]);
+    if (!(out.lo[axis] <= out.hi[axis])) return clamped;
+  }
+  return out;
+}
+
 // A subtree swept exactly, laid out as the final tree will be (children adjacent, depth
 // first, left before right) but with node and reference indices local to the block.
 struct Block {
@@ -149,6 +222,13 @@ struct Scratch {
   std::vector<std::uint8_t> side;
   std::vector<Event> sort_buffer;
   std::vector<std::uint32_t> leaf;
+  std::vector<Aabb> bounds;                  // a block root's references, clipped
+  std::vector<std::uint32_t> straddlers;     // one split's references on both sides
+  std::vector<std::uint32_t> slot;           // a straddler's index in `straddlers`
+  std::vector<Aabb> current;                 // ... its bounds in the node being split
+  std::vector<Aabb> clip_left, clip_right;   // ... clipped to either child
+  std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
+  std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
 };
 
 std::uint32_t sort_key(float pos) {
@@ -238,20 +318,14 @@ class BlockBuilder {
     s_.arena.release(0);
     if (s_.side.size() < n) s_.side.resize(n);
     std::size_t off[3], len[3];
+    std::vector<Aabb>& bounds = s_.bounds;
+    bounds.resize(n);
+    for (std::size_t i = 0; i < n; ++i) bounds[i] = clipped_bounds(ctx_, tris_[i], box, ctx_.tri_box[tris_[i]]);
     for (int axis = 0; axis < 3; ++axis) {
       off[axis] = s_.arena.alloc(2 * n);
       Event* ev = s_.arena.at(off[axis]);
       std::size_t m = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        const Aabb& b = ctx_.tri_box[tris_[i]];
-        const auto code = static_cast<std::uint32_t>(i) << 2;
-        if (b.lo[axis] == b.hi[axis]) {
-          ev[m++] = Event{b.lo[axis], code | kPlanar};
-        } else {
-          ev[m++] = Event{std::max(b.lo[axis], box.lo[axis]), code | kStart};
-          ev[m++] = Event{std::min(b.hi[axis], box.hi[axis]), code | kEnd};
-        }
-      }
+      for (std::size_t i = 0; i < n; ++i) m += add_events(ev + m, bounds[i], axis, static_cast<std::uint32_t>(i));
       sort_events(ev, m, s_.sort_buffer);
       len[axis] = m;
     }
@@ -260,6 +334,19 @@ class BlockBuilder {
   }
 
  private:
+  // Writes the events of a reference with bounds `b` (inside the node's box) along `axis`;
+  // returns how many (1 or 2).
+  static std::size_t add_events(Event* ev, const Aabb& b, int axis, std::uint32_t ref) {
+    const std::uint32_t code = ref << 2;
+    if (b.lo[axis] == b.hi[axis]) {
+      ev[0] = Event{b.lo[axis], code | kPlanar};
+      return 1;
+    }
+    ev[0] = Event{b.lo[axis], code | kStart};
+    ev[1] = Event{b.hi[axis], code | kEnd};
+    return 2;
+  }
+
   void node(std::size_t index, const std::size_t off[3], const std::size_t len[3], std::size_t count, const Aabb& box,
             int depth) {
     const KdBuildOptions& options = ctx_.options;
@@ -301,48 +388,102 @@ class BlockBuilder {
         }
       }
     }
+    Aabb left_box = box, right_box = box;
+    left_box.hi[split.axis] = p;
+    right_box.lo[split.axis] = p;
+
+    // Perfect splits (Wald & Havran 2006, sections 4.3 and 5): each straddling reference is
+    // clipped to both children's boxes and its events regenerated on every axis; the few new
+    // events are sorted and merged into the lists the other references keep in order.
+    std::vector<std::uint32_t>& straddlers = s_.straddlers;
+    straddlers.clear();
+    {
+      const Event* ev = s_.arena.at(off[split.axis]);
+      for (std::size_t i = 0; i < len[split.axis]; ++i) {
+        if (ev[i].type() == kStart && side[ev[i].ref()] == kBoth) straddlers.push_back(ev[i].ref());
+      }
+    }
+    std::sort(straddlers.begin(), straddlers.end());  // new events independent of list order
+    std::vector<std::uint32_t>& slot = s_.slot;
+    if (slot.size() < tris_.size()) slot.resize(tris_.size());
+    for (std::size_t k = 0; k < straddlers.size(); ++k) slot[straddlers[k]] = static_cast<std::uint32_t>(k);
+    std::vector<Aabb>& current = s_.current;
+    current.assign(straddlers.size(), Aabb{});
+
+    // One pass per axis keeps the one-sided references' events in order and reads the
+    // straddlers' present bounds.
+    std::size_t n_kept_left[3], n_kept_right[3];
+    std::size_t left_count = straddlers.size(), right_count = straddlers.size();
+    for (int axis = 0; axis < 3; ++axis) {
+      const Event* ev = s_.arena.at(off[axis]);
+      const std::size_t size = len[axis];
+      std::vector<Event>& kept_left = s_.kept_left[axis];
+      std::vector<Event>& kept_right = s_.kept_right[axis];
+      if (kept_left.size() < size) kept_left.resize(size);
+      if (kept_right.size() < size) kept_right.resize(size);
+      Event* l = kept_left.data();
+      Event* r = kept_right.data();
+      // Every event is written to both lists and kept where its side says; a straddler's old
+      // events are kept by neither.
+      for (std::size_t i = 0; i < size; ++i) {
+        const Event e = ev[i];
+        const std::uint8_t s = side[e.ref()];
+        *l = e;
+        *r = e;
+        l += s == kLeft;
+        r += s == kRight;
+        if (s == kBoth) {
+          Aabb& c = current[slot[e.ref()]];
+          if (e.type() != kEnd) c.lo[axis] = e.pos;
+          if (e.type() != kStart) c.hi[axis] = e.pos;
+        }
+      }
+      n_kept_left[axis] = static_cast<std::size_t>(l - kept_left.data());
+      n_kept_right[axis] = static_cast<std::size_t>(r - kept_right.data());
+      if (axis == split.axis) {
+        for (std::size_t i = 0; i < n_kept_left[axis]; ++i) left_count += kept_left[i].type() != kEnd;
+        for (std::size_t i = 0; i < n_kept_right[axis]; ++i) right_count += kept_right[i].type() != kEnd;
+      }
+    }
+    std::vector<Aabb>& clip_left = s_.clip_left;
+    std::vector<Aabb>& clip_right = s_.clip_right;
+    clip_left.resize(straddlers.size());
+    clip_right.resize(straddlers.size());
+    for (std::size_t k = 0; k < straddlers.size(); ++k) {
+      const std::uint32_t tri = tris_[straddlers[k]];
+      clip_left[k] = clipped_bounds(ctx_, tri, left_box, current[k]);
+      clip_right[k] = clipped_bounds(ctx_, tri, right_box, current[k]);
+    }
+
     const std::size_t mark = s_.arena.mark();
     std::size_t left_off[3], right_off[3], left_len[3], right_len[3];
+    // Clipping never grows a reference's bounds, so it never has more events than before.
     for (int axis = 0; axis < 3; ++axis) {
       left_off[axis] = s_.arena.alloc(len[axis]);
       right_off[axis] = s_.arena.alloc(len[axis]);
     }
-    std::size_t left_count = 0, right_count = 0;
+    const auto by_pos = [](const Event& x, const Event& y) { return x.pos < y.pos; };
     for (int axis = 0; axis < 3; ++axis) {
-      const Event* ev = s_.arena.at(off[axis]);
-      Event* l = s_.arena.at(left_off[axis]);
-      Event* r = s_.arena.at(right_off[axis]);
-      Event* const l0 = l;
-      Event* const r0 = r;
-      const std::size_t size = len[axis];
-      // Branch-free: every event is written to both lists and kept where its side says. On the
-      // split axis a left reference's events lie at or below the plane and a right one's at or
-      // above, so min and max only move a straddling reference's events onto the plane.
-      if (axis == split.axis) {
-        // Each reference has one start or planar event per axis: count them here.
-        for (std::size_t i = 0; i < size; ++i) {
-          const Event e = ev[i];
-          const std::uint8_t s = side[e.ref()];
-          *l = Event{std::min(e.pos, p), e.code};
-          *r = Event{std::max(e.pos, p), e.code};
-          const bool once = e.type() != kEnd;
-          left_count += once & (s != kRight);
-          right_count += once & (s != kLeft);
-          l += s != kRight;
-          r += s != kLeft;
-        }
-      } else {
-        for (std::size_t i = 0; i < size; ++i) {
-          const Event e = ev[i];
-          const std::uint8_t s = side[e.ref()];
-          *l = e;
-          *r = e;
-          l += s != kRight;
-          r += s != kLeft;
-        }
+      std::vector<Event>& new_left = s_.new_left;
+      std::vector<Event>& new_right = s_.new_right;
+      new_left.resize(2 * straddlers.size());
+      new_right.resize(2 * straddlers.size());
+      std::size_t n_new_left = 0, n_new_right = 0;
+      for (std::size_t k = 0; k < straddlers.size(); ++k) {
+        n_new_left += add_events(new_left.data() + n_new_left, clip_left[k], axis, straddlers[k]);
+        n_new_right += add_events(new_right.data() + n_new_right, clip_right[k], axis, straddlers[k]);
       }
-      left_len[axis] = static_cast<std::size_t>(l - l0);
-      right_len[axis] = static_cast<std::size_t>(r - r0);
+      sort_events(new_left.data(), n_new_left, s_.sort_buffer);
+      sort_events(new_right.data(), n_new_right, s_.sort_buffer);
+      const Event* kept_left = s_.kept_left[axis].data();
+      const Event* kept_right = s_.kept_right[axis].data();
+      Event* l_end = std::merge(kept_left, kept_left + n_kept_left[axis], new_left.data(),
+                                new_left.data() + n_new_left, s_.arena.at(left_off[axis]), by_pos);
+      Event* r_end = std::merge(kept_right, kept_right + n_kept_right[axis], new_right.data(),
+                                new_right.data() + n_new_right, s_.arena.at(right_off[axis]), by_pos);
+      left_len[axis] = static_cast<std::size_t>(l_end - s_.arena.at(left_off[axis]));
+      right_len[axis] = static_cast<std::size_t>(r_end - s_.arena.at(right_off[axis]));
+      RTC_DCHECK(left_len[axis] <= len[axis] && right_len[axis] <= len[axis], "clipping grew a reference");
     }
 
     const std::size_t first = out_.nodes.size();
@@ -351,9 +492,6 @@ class BlockBuilder {
     inner.bits = (static_cast<std::uint32_t>(first) << 2) | static_cast<std::uint32_t>(split.axis);
     inner.split = p;
     out_.nodes[index] = inner;
-    Aabb left_box = box, right_box = box;
-    left_box.hi[split.axis] = p;
-    right_box.lo[split.axis] = p;
     node(first, left_off, left_len, left_count, left_box, depth + 1);
     node(first + 1, right_off, right_len, right_count, right_box, depth + 1);
     s_.arena.release(mark);
@@ -864,7 +1002,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (max_depth <= 0) max_depth = static_cast<int>(8.0 + 1.3 * std::log2(static_cast<double>(count)));
   max_depth = std::clamp(max_depth, 1, 60);
 
-  BuildContext ctx{options, tri_box, max_depth, kBins, kExactBelow, sah_scale_for(root)};
+  BuildContext ctx{options, tri_box, positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root)};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
