@@ -3,12 +3,15 @@
 // bits).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "common/accel/kd_tree.h"
@@ -79,30 +82,63 @@ Soup sphere_and_grid(int seg) {
   return s;
 }
 
-Aabb tri_box(const Soup& s, std::uint32_t t) {
-  Aabb b;
-  for (int k = 0; k < 3; ++k) b.extend(s.positions[s.triangles[t][k]]);
-  return b;
-}
-
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
   const std::uint32_t* r = tree.prim_refs().data() + leaf.prim_offset();
   return std::any_of(r, r + leaf.count, [&](std::uint32_t ref) { return tree.records()[ref].wald.id == tri; });
 }
 
-// Every triangle is referenced by every leaf its bounds overlap with positive extent along
-// the split; a triangle lying in a split plane by at least one side.
-bool reachable(const KdTree& tree, std::uint32_t index, const Aabb& b, std::uint32_t tri) {
+// Bounds of the triangle clipped to `box` in double (Sutherland-Hodgman; a point on a plane
+// is inside); empty where the triangle misses the box.
+std::pair<glm::dvec3, glm::dvec3> clip_to_box(const Soup& s, std::uint32_t t, const Aabb& box) {
+  std::vector<glm::dvec3> poly, next;
+  for (int k = 0; k < 3; ++k) poly.emplace_back(s.positions[s.triangles[t][k]]);
+  for (int plane = 0; plane < 6 && !poly.empty(); ++plane) {
+    const int axis = plane >> 1;
+    const bool upper = plane & 1;
+    const double bound = upper ? box.hi[axis] : box.lo[axis];
+    auto inside = [&](const glm::dvec3& v) { return upper ? v[axis] <= bound : v[axis] >= bound; };
+    next.clear();
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      const glm::dvec3 a = poly[i], b = poly[(i + 1) % poly.size()];
+      if (inside(a)) next.push_back(a);
+      if (inside(a) != inside(b)) {
+        glm::dvec3 x = a + (bound - a[axis]) / (b[axis] - a[axis]) * (b - a);
+        x[axis] = bound;
+        next.push_back(x);
+      }
+    }
+    poly.swap(next);
+  }
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (const glm::dvec3& v : poly) {
+    lo = glm::min(lo, v);
+    hi = glm::max(hi, v);
+  }
+  return {lo, hi};
+}
+
+// Every triangle is referenced by every leaf its clipped geometry overlaps with positive
+// extent along the split (beyond a relative 1e-9, far above the clip's double rounding and far
+// below float spacing); a triangle lying in a split plane by at least one side. The build
+// clips straddling triangles to each child ("perfect splits"), so bounding boxes would ask
+// too much.
+bool reachable(const KdTree& tree, const Soup& s, std::uint32_t index, const Aabb& box, std::uint32_t tri) {
+  const auto [lo, hi] = clip_to_box(s, tri, box);
+  if (lo.x > hi.x) return true;  // not in this node
   const KdNode& node = tree.nodes()[index];
   if (node.is_leaf()) return leaf_has(tree, node, tri);
   const int a = node.axis();
-  const float s = node.split;
-  if (b.lo[a] == s && b.hi[a] == s) {
-    return reachable(tree, node.left(), b, tri) || reachable(tree, node.left() + 1, b, tri);
+  const double p = node.split;
+  const double tol = 1e-9 * std::max(1.0, std::abs(p));
+  Aabb left = box, right = box;
+  left.hi[a] = node.split;
+  right.lo[a] = node.split;
+  if (lo[a] >= p - tol && hi[a] <= p + tol) {
+    return reachable(tree, s, node.left(), left, tri) || reachable(tree, s, node.left() + 1, right, tri);
   }
   bool ok = true;
-  if (b.lo[a] < s) ok = ok && reachable(tree, node.left(), b, tri);
-  if (b.hi[a] > s) ok = ok && reachable(tree, node.left() + 1, b, tri);
+  if (lo[a] < p - tol) ok = ok && reachable(tree, s, node.left(), left, tri);
+  if (hi[a] > p + tol) ok = ok && reachable(tree, s, node.left() + 1, right, tri);
   return ok;
 }
 
@@ -112,8 +148,13 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
     const KdTree tree = KdTree::build(s.positions, s.triangles);
     ASSERT_FALSE(tree.empty());
     EXPECT_GT(tree.stats().leaves, 1u);
+    const Aabb root = [&] {
+      Aabb b;
+      for (const glm::vec3& v : s.positions) b.extend(v);
+      return b;
+    }();
     for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
-      ASSERT_TRUE(reachable(tree, 0, tri_box(s, t), t)) << "triangle " << t << " unreachable";
+      ASSERT_TRUE(reachable(tree, s, 0, root, t)) << "triangle " << t << " unreachable";
     }
   }
 }
