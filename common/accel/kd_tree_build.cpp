@@ -554,7 +554,7 @@ class TopBuilder {
     node->axis = split.axis;
     node->split = split.pos;
     std::vector<std::uint32_t> left, right;
-    partition(tris, split, left, right);
+    partition(tris, box, split, left, right);
     tris = {};  // the parent's list is no longer needed
 
     Aabb left_box = box, right_box = box;
@@ -729,11 +729,12 @@ class TopBuilder {
     }
   }
 
-  // Exactly the sides the event sweep gives: a reference ending at or below the plane goes
-  // left, one starting at or above it right, one lying in it to the side the split names, and
-  // the rest to both. Order is kept, so every list stays ascending.
-  void partition(const std::vector<std::uint32_t>& tris, const SplitChoice& split, std::vector<std::uint32_t>& left,
-                 std::vector<std::uint32_t>& right) const {
+  // A reference ending at or below the plane goes left, one starting at or above it right,
+  // one lying in it to the side the split names, and the rest to both unless the triangle
+  // clipped to the node (clipped_bounds(), conservative) lies on one side. The binned counts
+  // above use clamped boxes: they only estimate. Order is kept, so every list stays ascending.
+  void partition(const std::vector<std::uint32_t>& tris, const Aabb& box, const SplitChoice& split,
+                 std::vector<std::uint32_t>& left, std::vector<std::uint32_t>& right) const {
     const std::size_t n = tris.size();
     const std::size_t chunks = chunk_count(n);
     const std::size_t per = n / chunks + 1;
@@ -753,6 +754,15 @@ class TopBuilder {
           s = kLeft;
         } else if (lo >= p) {
           s = kRight;
+        } else {
+          // A straddling box: the triangle clipped to the node may still lie on one side
+          // (a long diagonal triangle crossing the plane outside the node).
+          const Aabb clipped = clipped_bounds(ctx_, tris[i], box, t);
+          if (clipped.hi[axis] <= p && clipped.lo[axis] < p) {
+            s = kLeft;
+          } else if (clipped.lo[axis] >= p && clipped.hi[axis] > p) {
+            s = kRight;
+          }
         }
         side[i] = s;
         l += s != kRight;

@@ -449,7 +449,11 @@ TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {
   std::vector<RayHit> hits(rays.size());
   trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), true);
   const std::vector<RayHit> ref = brute_force(s, rays);
-  const test::HitComparison c = test::compare_hits(s.positions, s.triangles, rays, hits, ref, 1e-5);
+  // The build clips triangles to node boxes, so planes hug the surface: a ray starting on one
+  // can hit at t ~ 1e-3, where Wald's float t (absolute error a few ulps of the unit-sized
+  // scene, 1.5e-8 measured at y = -0x1.f257a8p-1) is more than 1e-5 off relatively. Hence
+  // the absolute 2e-7 (about 3 ulps of 1.0) beside the relative tolerance.
+  const test::HitComparison c = test::compare_hits(s.positions, s.triangles, rays, hits, ref, 1e-5, 1e-3, 2e-7);
   for (std::size_t i : c.examples) ADD_FAILURE() << test::describe_ray(rays[i]);
   // These rays run exactly along rings of sphere vertices (the split planes sit on them), so
   // many graze shared edges, where Wald's test may let a ray through (issue: watertightness).
