@@ -42,6 +42,25 @@ Soup random_soup(std::uint32_t seed, int count, float size) {
   return s;
 }
 
+// Slivers from one vertex to random far points, each 1e-3 wide (Wald & Havran's case for
+// clipping: their boxes cover most of the scene), plus the random soup of seed 5 among them.
+Soup sliver_fan(std::uint32_t seed, int count) {
+  SCOPED_TRACE("sliver_fan seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-1.0f, 1.0f);
+  Soup s = random_soup(5, 2000, 0.05f);
+  const glm::vec3 hub(0.1f, -0.2f, 0.3f);
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 far(pos(rng), pos(rng), pos(rng));
+    const auto b = static_cast<unsigned>(s.positions.size());
+    s.positions.push_back(hub);
+    s.positions.push_back(far);
+    s.positions.push_back(far + glm::vec3(1e-3f, 0.0f, 1e-3f));
+    s.triangles.emplace_back(b, b + 1, b + 2);
+  }
+  return s;
+}
+
 // A closed UV sphere plus an axis-aligned grid floor: shared edges, planar triangles lying in
 // split planes, and axis-parallel faces.
 Soup sphere_and_grid(int seg) {
@@ -143,8 +162,9 @@ bool reachable(const KdTree& tree, const Soup& s, std::uint32_t index, const Aab
 }
 
 TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
-  // Seeds 7 and 11 (random soups), then a sphere on a grid.
-  for (const Soup& s : {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f)}) {
+  // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
+  for (const Soup& s :
+       {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000)}) {
     const KdTree tree = KdTree::build(s.positions, s.triangles);
     ASSERT_FALSE(tree.empty());
     EXPECT_GT(tree.stats().leaves, 1u);
