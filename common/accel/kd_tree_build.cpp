@@ -1,7 +1,8 @@
 // SAH kd-tree build. Big nodes take their plane from a binned SAH over triangle references
 // (Shevtsov, Soupikov, Kapustin 2007, section 3), binned and partitioned in parallel near the
 // root; subtrees of at most a few thousand references take the exact O(N log N) event sweep of
-// Wald & Havran 2006 in flat per-thread buffers. Parallel over subtrees (TBB).
+// Wald & Havran 2006 in flat per-thread buffers, with straddling triangles clipped to each
+// child ("perfect splits", section 4.3). Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -24,8 +25,7 @@ namespace rtc {
 namespace {
 
 // Event type order within one position does not matter to the sweep below (it counts a whole
-// group of equal positions at once), which is what lets children inherit sorted lists whose
-// straddling triangles were clamped to the split plane.
+// group of equal positions at once), so merged lists need only be sorted by position.
 enum EventType : std::uint32_t { kEnd = 0, kPlanar = 1, kStart = 2 };
 
 struct Event {
@@ -304,10 +304,10 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
   return best;
 }
 
-// Sweeps one subtree exactly: three event lists sorted once at its root, then each node splits
-// its sorted lists in linear time into its children's (Wald & Havran 2006, section 4.3).
-// Straddling references go to both sides with their split-axis events clamped to the plane:
-// clamping is monotone, so every child list stays sorted.
+// Sweeps one subtree exactly: three event lists sorted once at its root (each triangle clipped
+// to the block's box), then each node splits its sorted lists into its children's (Wald &
+// Havran 2006, section 4.3): one-sided references keep their events in order, straddling ones
+// are clipped to either child and their few new events sorted and merged in.
 class BlockBuilder {
  public:
   BlockBuilder(const BuildContext& ctx, Scratch& scratch, std::span<const std::uint32_t> tris, Block& out)
