@@ -32,7 +32,7 @@ int run(int argc, char** argv) {
   std::string frames_text;
   std::string out_pattern;
   int threads = 0, tile = 32;
-  std::string isa_text, log_level = "info";
+  std::string isa_text, log_level = "info", kd_clip = "auto";
   bool exr_float = false, single_rays = false, no_depth = false, no_normal = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
@@ -42,6 +42,9 @@ int run(int argc, char** argv) {
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
+  app.add_option("--kd-clip", kd_clip, "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, 2-4x slower builds): auto (on unless meshes move), on, off")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
@@ -85,6 +88,7 @@ int run(int argc, char** argv) {
   rtc::RenderOptions options;
   options.isa = isa;
   options.packets = !single_rays;
+  options.kd_clip = rtc::parse_kd_clip(kd_clip);
   options.aovs = !(no_depth && no_normal);
   rtc::Renderer renderer(std::move(scene), options);
   spdlog::info("kernels: {}, {}, {} threads", rtc::isa_name(renderer.isa()),

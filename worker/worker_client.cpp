@@ -213,6 +213,7 @@ class WorkerClient {
     if (options_.name.empty()) options_.name = host_name();
     options_.name = options_.name.substr(0, proto::kMaxName);
     render_options_.isa = options_.isa;
+    render_options_.kd_clip = options_.kd_clip;
     isa_ = options_.isa.value_or(best_isa());
   }
 

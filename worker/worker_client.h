@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "common/accel/kd_tree.h"
 #include "common/base/isa.h"
 
 namespace rtc {
@@ -15,6 +16,7 @@ struct WorkerOptions {
   std::string token;                       ///< empty: none (the master must not require one)
   int threads = 0;                         ///< render threads; 0: all cores
   std::optional<Isa> isa;                  ///< empty: the best this CPU supports
+  KdClip kd_clip = KdClip::Auto;           ///< kd-tree perfect splits (KdBuildOptions::clip)
   std::string name;                        ///< shown in the master's log; default: host name
   double retry_seconds = 60;  ///< give up after the master was unreachable this long (0: never)
   bool stay = false;          ///< on the master's Goodbye, wait for the next master instead of exiting

@@ -64,6 +64,7 @@ struct BuildContext {
   int bins = 0;                 // binned SAH resolution per axis
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
   float sah_scale = 1.0f;       // see sah_scale_for()
+  bool clip = true;             // KdBuildOptions::clip
 };
 
 // SAH areas are computed with every length multiplied by this power of two: 1 for scenes whose
@@ -108,74 +109,133 @@ class SahAxis {
   float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
 };
 
-// Bounds of triangle `tri` clipped to `box` ("perfect splits", Wald & Havran 2006, section
-// 4.3), never smaller than the exact intersection: Sutherland-Hodgman in double against the
-// six planes (a point on a plane counts as inside, so a triangle lying in a face survives),
-// the result widened by far more than the double rounding of at most six clip steps
-// (2^-40 of the largest magnitude involved), rounded outward to float and intersected with
-// the clamped box. Where the clip comes out empty (a triangle that only touches the box, or
-// rounding) the clamped box is kept: a reference is never dropped here. `bounds` are the
-// reference's bounds so far (its triangle's box at first); the result lies inside them, so a
-// reference's bounds only shrink down the tree and its events never grow in number.
-Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box, const Aabb& bounds) {
-  const Aabb& t = ctx.tri_box[tri];
-  Aabb clamped;
-  clamped.lo = glm::max(bounds.lo, box.lo);
-  clamped.hi = glm::min(bounds.hi, box.hi);
-  if (glm::all(glm::greaterThanEqual(t.lo, box.lo)) && glm::all(glm::lessThanEqual(t.hi, box.hi))) return clamped;
-  // 3 vertices + one more per plane in exact arithmetic; rounding could add more, and a step
-  // emits at most two per vertex, so a polygon that could overflow keeps the clamped box.
-  constexpr int kMaxVerts = 32;
-  std::array<glm::dvec3, kMaxVerts> poly_a, poly_b;
-  glm::dvec3* poly = poly_a.data();
-  glm::dvec3* next = poly_b.data();
-  const glm::uvec3 idx = ctx.triangles[tri];
-  int n = 3;
-  for (int k = 0; k < 3; ++k) poly[k] = glm::dvec3(ctx.positions[idx[k]]);
-  for (int plane = 0; plane < 6 && n > 0; ++plane) {
-    if (2 * n > kMaxVerts) return clamped;
-    const int axis = plane >> 1;
-    const bool upper = plane & 1;
-    const double bound = upper ? box.hi[axis] : box.lo[axis];
-    auto inside = [&](const glm::dvec3& v) { return upper ? v[axis] <= bound : v[axis] >= bound; };
-    int m = 0;
-    for (int i = 0; i < n; ++i) {
-      const glm::dvec3& a = poly[i];
-      const glm::dvec3& b = poly[(i + 1) % n];
-      const bool in_a = inside(a), in_b = inside(b);
-      if (in_a) next[m++] = a;
-      if (in_a != in_b) {
-        const double f = (bound - a[axis]) / (b[axis] - a[axis]);
-        glm::dvec3 x = a + f * (b - a);
-        x[axis] = bound;
-        next[m++] = x;
+// Clipping straddling triangles ("perfect splits", Wald & Havran 2006, section 4.3). The
+// bounds computed here are never smaller than the exact intersection: Sutherland-Hodgman in
+// double against the node's planes (a point on a plane counts as inside, so a triangle lying
+// in a face survives), the result widened by far more than the double rounding of at most
+// seven clip steps (2^-40 of the largest magnitude involved), rounded outward to float and
+// intersected with the clamped box. Where a clip comes out empty (a triangle that only touches
+// the box, or rounding) the clamped box is kept: a reference is never dropped here. `bounds`
+// are the reference's bounds so far (its triangle's box at first); results lie inside them, so
+// a reference's bounds only shrink down the tree and its events never grow in number.
+class TriangleClip {
+ public:
+  // Clips triangle `tri` to `box`; false when the polygon could overflow its buffer or a
+  // magnitude is not finite (the caller keeps clamped boxes then).
+  bool clip(const BuildContext& ctx, std::uint32_t tri, const Aabb& box) {
+    const Aabb& t = ctx.tri_box[tri];
+    const glm::dvec3 mag = glm::max(glm::max(glm::abs(glm::dvec3(t.lo)), glm::abs(glm::dvec3(t.hi))),
+                                    glm::max(glm::abs(glm::dvec3(box.lo)), glm::abs(glm::dvec3(box.hi))));
+    const double m = std::max({mag.x, mag.y, mag.z});
+    if (!std::isfinite(m)) return false;
+    pad_ = std::ldexp(m, -40);
+    glm::dvec3* poly = a_.data();
+    glm::dvec3* next = b_.data();
+    const glm::uvec3 idx = ctx.triangles[tri];
+    n_ = 3;
+    for (int k = 0; k < 3; ++k) poly[k] = glm::dvec3(ctx.positions[idx[k]]);
+    for (int plane = 0; plane < 6 && n_ > 0; ++plane) {
+      const int axis = plane >> 1;
+      const bool upper = plane & 1;
+      // The polygon lies inside the triangle's box: a plane that box does not cross changes
+      // nothing (most planes, for triangles small against the node).
+      if (upper ? t.hi[axis] <= box.hi[axis] : t.lo[axis] >= box.lo[axis]) continue;
+      if (2 * n_ > kMaxVerts) return false;
+      const double bound = upper ? box.hi[axis] : box.lo[axis];
+      auto inside = [&](const glm::dvec3& v) { return upper ? v[axis] <= bound : v[axis] >= bound; };
+      int m_out = 0;
+      for (int i = 0; i < n_; ++i) {
+        const glm::dvec3& a = poly[i];
+        const glm::dvec3& b = poly[i + 1 == n_ ? 0 : i + 1];
+        const bool in_a = inside(a), in_b = inside(b);
+        if (in_a) next[m_out++] = a;
+        if (in_a != in_b) next[m_out++] = cut(a, b, axis, bound);
+      }
+      n_ = m_out;
+      std::swap(poly, next);
+    }
+    poly_ = poly;
+    return true;
+  }
+
+  // Bounds of the clipped polygon, inside `clamped` (the reference's bounds clamped to the box).
+  [[nodiscard]] Aabb bounds(const Aabb& clamped) const {
+    if (n_ == 0) return clamped;
+    glm::dvec3 lo(kInf), hi(-kInf);
+    for (int i = 0; i < n_; ++i) {
+      lo = glm::min(lo, poly_[i]);
+      hi = glm::max(hi, poly_[i]);
+    }
+    return round_out(lo, hi, clamped);
+  }
+
+  // Bounds of the clipped polygon's parts on either side of the plane `axis` = `p` (one more
+  // clip step for each), inside `left_clamped` and `right_clamped`.
+  void split(int axis, float p, const Aabb& left_clamped, const Aabb& right_clamped, Aabb& left, Aabb& right) const {
+    glm::dvec3 llo(kInf), lhi(-kInf), rlo(kInf), rhi(-kInf);
+    int nl = 0, nr = 0;
+    const double bound = p;
+    for (int i = 0; i < n_; ++i) {
+      const glm::dvec3& a = poly_[i];
+      const glm::dvec3& b = poly_[i + 1 == n_ ? 0 : i + 1];
+      if (a[axis] <= bound) llo = glm::min(llo, a), lhi = glm::max(lhi, a), ++nl;
+      if (a[axis] >= bound) rlo = glm::min(rlo, a), rhi = glm::max(rhi, a), ++nr;
+      if ((a[axis] < bound && b[axis] > bound) || (a[axis] > bound && b[axis] < bound)) {
+        const glm::dvec3 x = cut(a, b, axis, bound);
+        llo = glm::min(llo, x), lhi = glm::max(lhi, x), ++nl;
+        rlo = glm::min(rlo, x), rhi = glm::max(rhi, x), ++nr;
       }
     }
-    n = m;
-    std::swap(poly, next);
+    left = nl > 0 ? round_out(llo, lhi, left_clamped) : left_clamped;
+    right = nr > 0 ? round_out(rlo, rhi, right_clamped) : right_clamped;
   }
-  if (n == 0) return clamped;
-  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-  for (int i = 0; i < n; ++i) {
-    lo = glm::min(lo, poly[i]);
-    hi = glm::max(hi, poly[i]);
+
+ private:
+  static constexpr int kMaxVerts = 32;  // 3 + one per plane exactly; rounding could add more
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+
+  static glm::dvec3 cut(const glm::dvec3& a, const glm::dvec3& b, int axis, double bound) {
+    const double f = (bound - a[axis]) / (b[axis] - a[axis]);
+    glm::dvec3 x = a + f * (b - a);
+    x[axis] = bound;
+    return x;
   }
-  const glm::dvec3 mag = glm::max(glm::max(glm::abs(glm::dvec3(t.lo)), glm::abs(glm::dvec3(t.hi))),
-                                  glm::max(glm::abs(glm::dvec3(box.lo)), glm::abs(glm::dvec3(box.hi))));
-  double m = std::max({mag.x, mag.y, mag.z});
-  if (!std::isfinite(m)) return clamped;
-  const double pad = std::ldexp(m, -40);
-  Aabb out;
-  for (int axis = 0; axis < 3; ++axis) {
-    float l = static_cast<float>(lo[axis] - pad);
-    if (static_cast<double>(l) > lo[axis] - pad) l = std::nextafter(l, -std::numeric_limits<float>::infinity());
-    float h = static_cast<float>(hi[axis] + pad);
-    if (static_cast<double>(h) < hi[axis] + pad) h = std::nextafter(h, std::numeric_limits<float>::infinity());
-    out.lo[axis] = std::max(l, clamped.lo[axis]);
-    out.hi[axis] = std::min(h, clamped.hi[axis]);
-    if (!(out.lo[axis] <= out.hi[axis])) return clamped;
+
+  [[nodiscard]] Aabb round_out(const glm::dvec3& lo, const glm::dvec3& hi, const Aabb& clamped) const {
+    Aabb out;
+    for (int axis = 0; axis < 3; ++axis) {
+      float l = static_cast<float>(lo[axis] - pad_);
+      if (static_cast<double>(l) > lo[axis] - pad_) l = std::nextafter(l, -std::numeric_limits<float>::infinity());
+      float h = static_cast<float>(hi[axis] + pad_);
+      if (static_cast<double>(h) < hi[axis] + pad_) h = std::nextafter(h, std::numeric_limits<float>::infinity());
+      out.lo[axis] = std::max(l, clamped.lo[axis]);
+      out.hi[axis] = std::min(h, clamped.hi[axis]);
+      if (!(out.lo[axis] <= out.hi[axis])) return clamped;
+    }
+    return out;
   }
-  return out;
+
+  std::array<glm::dvec3, kMaxVerts> a_, b_;
+  glm::dvec3* poly_ = nullptr;
+  int n_ = 0;
+  double pad_ = 0;
+};
+
+Aabb clamp_box(const Aabb& bounds, const Aabb& box) {
+  Aabb c;
+  c.lo = glm::max(bounds.lo, box.lo);
+  c.hi = glm::min(bounds.hi, box.hi);
+  return c;
+}
+
+// Bounds of triangle `tri` clipped to `box`, inside `bounds` (see TriangleClip).
+Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box, const Aabb& bounds) {
+  const Aabb& t = ctx.tri_box[tri];
+  const Aabb clamped = clamp_box(bounds, box);
+  if (glm::all(glm::greaterThanEqual(t.lo, box.lo)) && glm::all(glm::lessThanEqual(t.hi, box.hi))) return clamped;
+  TriangleClip clip;
+  if (!clip.clip(ctx, tri, box)) return clamped;
+  return clip.bounds(clamped);
 }
 
 // A subtree swept exactly, laid out as the final tree will be (children adjacent, depth
@@ -227,6 +287,7 @@ struct Scratch {
   std::vector<std::uint32_t> slot;           // a straddler's index in `straddlers`
   std::vector<Aabb> current;                 // ... its bounds in the node being split
   std::vector<Aabb> clip_left, clip_right;   // ... clipped to either child
+  TriangleClip clip;
   std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
   std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
 };
@@ -320,7 +381,10 @@ class BlockBuilder {
     std::size_t off[3], len[3];
     std::vector<Aabb>& bounds = s_.bounds;
     bounds.resize(n);
-    for (std::size_t i = 0; i < n; ++i) bounds[i] = clipped_bounds(ctx_, tris_[i], box, ctx_.tri_box[tris_[i]]);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Aabb& t = ctx_.tri_box[tris_[i]];
+      bounds[i] = ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box);
+    }
     for (int axis = 0; axis < 3; ++axis) {
       off[axis] = s_.arena.alloc(2 * n);
       Event* ev = s_.arena.at(off[axis]);
@@ -397,7 +461,7 @@ class BlockBuilder {
     // events are sorted and merged into the lists the other references keep in order.
     std::vector<std::uint32_t>& straddlers = s_.straddlers;
     straddlers.clear();
-    {
+    if (ctx_.clip) {
       const Event* ev = s_.arena.at(off[split.axis]);
       for (std::size_t i = 0; i < len[split.axis]; ++i) {
         if (ev[i].type() == kStart && side[ev[i].ref()] == kBoth) straddlers.push_back(ev[i].ref());
@@ -424,18 +488,30 @@ class BlockBuilder {
       Event* l = kept_left.data();
       Event* r = kept_right.data();
       // Every event is written to both lists and kept where its side says; a straddler's old
-      // events are kept by neither.
-      for (std::size_t i = 0; i < size; ++i) {
-        const Event e = ev[i];
-        const std::uint8_t s = side[e.ref()];
-        *l = e;
-        *r = e;
-        l += s == kLeft;
-        r += s == kRight;
-        if (s == kBoth) {
-          Aabb& c = current[slot[e.ref()]];
-          if (e.type() != kEnd) c.lo[axis] = e.pos;
-          if (e.type() != kStart) c.hi[axis] = e.pos;
+      // events are kept by neither. Without clipping they are kept by both, unchanged: events
+      // outside a child's box count the same as clamped ones, and stay in order.
+      if (ctx_.clip) {
+        for (std::size_t i = 0; i < size; ++i) {
+          const Event e = ev[i];
+          const std::uint8_t s = side[e.ref()];
+          *l = e;
+          *r = e;
+          l += s == kLeft;
+          r += s == kRight;
+          if (s == kBoth) {
+            Aabb& c = current[slot[e.ref()]];
+            if (e.type() != kEnd) c.lo[axis] = e.pos;
+            if (e.type() != kStart) c.hi[axis] = e.pos;
+          }
+        }
+      } else {
+        for (std::size_t i = 0; i < size; ++i) {
+          const Event e = ev[i];
+          const std::uint8_t s = side[e.ref()];
+          *l = e;
+          *r = e;
+          l += s != kRight;
+          r += s != kLeft;
         }
       }
       n_kept_left[axis] = static_cast<std::size_t>(l - kept_left.data());
@@ -449,10 +525,18 @@ class BlockBuilder {
     std::vector<Aabb>& clip_right = s_.clip_right;
     clip_left.resize(straddlers.size());
     clip_right.resize(straddlers.size());
+    // The triangle is clipped to the node once; one more step splits the polygon in two.
+    TriangleClip& clip = s_.clip;
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
       const std::uint32_t tri = tris_[straddlers[k]];
-      clip_left[k] = clipped_bounds(ctx_, tri, left_box, current[k]);
-      clip_right[k] = clipped_bounds(ctx_, tri, right_box, current[k]);
+      const Aabb left_clamped = clamp_box(current[k], left_box);
+      const Aabb right_clamped = clamp_box(current[k], right_box);
+      if (clip.clip(ctx_, tri, box)) {
+        clip.split(split.axis, p, left_clamped, right_clamped, clip_left[k], clip_right[k]);
+      } else {
+        clip_left[k] = left_clamped;
+        clip_right[k] = right_clamped;
+      }
     }
 
     const std::size_t mark = s_.arena.mark();
@@ -754,7 +838,7 @@ class TopBuilder {
           s = kLeft;
         } else if (lo >= p) {
           s = kRight;
-        } else {
+        } else if (ctx_.clip) {
           // A straddling box: the triangle clipped to the node may still lie on one side
           // (a long diagonal triangle crossing the plane outside the node).
           const Aabb clipped = clipped_bounds(ctx_, tris[i], box, t);
@@ -902,6 +986,24 @@ TriVerts make_tri_verts(const glm::vec3& a, const glm::vec3& b, const glm::vec3&
   return v;
 }
 
+const char* kd_clip_name(KdClip clip) {
+  switch (clip) {
+    case KdClip::On:
+      return "on";
+    case KdClip::Off:
+      return "off";
+    default:
+      return "auto";
+  }
+}
+
+KdClip parse_kd_clip(std::string_view text) {
+  if (text == "auto") return KdClip::Auto;
+  if (text == "on") return KdClip::On;
+  if (text == "off") return KdClip::Off;
+  throw Error(fmt::format("kd-tree clipping must be auto, on or off, got \"{}\"", text));
+}
+
 std::string KdBuildStats::to_string() const {
   return fmt::format(
       "kd-tree: {} triangles ({} degenerate skipped) in {:.1f} ms, {} nodes, {} leaves ({} empty), "
@@ -1012,7 +1114,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (max_depth <= 0) max_depth = static_cast<int>(8.0 + 1.3 * std::log2(static_cast<double>(count)));
   max_depth = std::clamp(max_depth, 1, 60);
 
-  BuildContext ctx{options, tri_box, positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root)};
+  BuildContext ctx{options, tri_box, positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
+                   options.clip};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;

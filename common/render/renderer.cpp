@@ -100,6 +100,14 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
 
 }  // namespace
 
+bool kd_clip_for(const Scene& scene, KdClip clip) {
+  if (clip != KdClip::Auto) return clip == KdClip::On;
+  for (const MeshTrack& track : scene.animation.meshes) {
+    if (track.keys.size() > 1) return false;  // a tree per frame
+  }
+  return true;
+}
+
 std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
                                               const KdBuildOptions& kd) {
   check_render_settings(settings);
@@ -146,7 +154,9 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     last_ = std::move(fs);
     return last_;
   }
-  auto fs = build_frame_state(scene_, frame, options_.settings.value_or(scene_.settings), options_.kd);
+  KdBuildOptions kd = options_.kd;
+  kd.clip = kd_clip_for(scene_, options_.kd_clip);
+  auto fs = build_frame_state(scene_, frame, options_.settings.value_or(scene_.settings), kd);
   fs->tracer = options_.tracer;
   spdlog::debug("frame {}: {}", frame, fs->geometry->tree.stats().to_string());
   last_ = std::move(fs);

@@ -21,7 +21,8 @@ struct RenderOptions {
   std::optional<RenderSettings> settings;  ///< empty: the scene's own
   std::optional<Isa> isa;                  ///< empty: best_isa()
   bool packets = true;                     ///< false: the single-ray (N = 1) kernels
-  KdBuildOptions kd;
+  KdBuildOptions kd;  ///< `kd.clip` is decided by `kd_clip` below
+  KdClip kd_clip = KdClip::Auto;
   bool aovs = true;                        ///< fill Image::depth and Image::normal
   /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must
   /// outlive the renderer.
@@ -62,6 +63,10 @@ class Renderer {
   std::shared_ptr<const FrameState> last_;
   std::vector<glm::mat4> last_world_from_object_;  ///< the mesh placement last_ was built for
 };
+
+/// KdBuildOptions::clip for `scene` under `clip` (Auto: on unless a mesh track has more than
+/// one key, i.e. unless the tree is rebuilt as frames go by).
+[[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
 
 /// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests. The tree uses
 /// `kd`, except that `settings.intersector` decides KdBuildOptions::watertight.

@@ -59,6 +59,7 @@ std::vector<Variant> make_variants(const Scene& scene, bool quick) {
   base.label = "shipped default";
   base.settings = scene.settings;
   base.isa = best_isa();
+  base.kd.clip = kd_clip_for(scene, KdClip::Auto);
   base.is_default = true;
   out.push_back(base);
   base.is_default = false;
@@ -125,6 +126,7 @@ std::vector<Variant> make_variants(const Scene& scene, bool quick) {
   for (int l : leaves) {
     add("kd-tree build", fmt::format("kd leaf size {}", l), [&](Variant& v) { v.kd.leaf_size = l; });
   }
+  add("kd-tree build", base.kd.clip ? "kd clipping off" : "kd clipping on", [&](Variant& v) { v.kd.clip = !base.kd.clip; });
   return out;
 }
 
@@ -274,6 +276,7 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
     ro.isa = v.isa;
     ro.packets = v.packets;
     ro.kd = v.kd;
+    ro.kd_clip = v.kd.clip ? KdClip::On : KdClip::Off;
     // Build time: a fresh renderer per rep (prepare() reuses the tree of an unchanged scene).
     std::unique_ptr<Renderer> renderer;
     std::shared_ptr<const FrameState> state;
@@ -309,7 +312,7 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
   const std::filesystem::path csv_path = options.out_dir / "sweep.csv";
   std::ofstream csv(csv_path);
   csv << "group,setting,is_default,pareto,max_depth,min_weight,intersector,isa,packets,kd_traversal_cost,kd_intersection_cost,"
-         "kd_max_depth,kd_leaf_size,wire,compression,build_ms,render_ms,codec_ms,wire_bytes,link_ms_100mbit,total_ms,"
+         "kd_max_depth,kd_leaf_size,kd_clip,wire,compression,build_ms,render_ms,codec_ms,wire_bytes,link_ms_100mbit,total_ms,"
          "primary_rays,shadow_rays,reflection_rays,rmse,psnr_db,max_abs,pct_over_1_255,non_finite\n";
   for (const Result& r : results) {
     const Variant& v = r.v;
@@ -317,7 +320,7 @@ int run_sweep(const Scene& scene, const SweepOptions& options) {
         << v.settings.max_depth << ',' << fmt_float(v.settings.min_weight) << ','
         << intersector_name(v.settings.intersector) << ',' << isa_name(v.isa) << ','
         << (v.packets ? 1 : 0) << ',' << fmt_float(v.kd.traversal_cost) << ',' << fmt_float(v.kd.intersection_cost) << ','
-        << v.kd.max_depth << ',' << v.kd.leaf_size << ',' << wire_format_name(v.wire) << ','
+        << v.kd.max_depth << ',' << v.kd.leaf_size << ',' << (v.kd.clip ? 1 : 0) << ',' << wire_format_name(v.wire) << ','
         << compression_name(v.compression) << ',' << fmt::format("{:.3f},{:.3f},{:.3f},", r.build_ms, r.render_ms, r.codec_ms)
         << r.wire_bytes << ',' << fmt::format("{:.3f},{:.3f},", r.link_ms, r.total_ms) << r.counts.primary << ','
         << r.counts.shadow << ',' << r.counts.reflection << ','
