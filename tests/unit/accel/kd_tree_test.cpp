@@ -165,16 +165,20 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
   // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
   for (const Soup& s :
        {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000)}) {
-    const KdTree tree = KdTree::build(s.positions, s.triangles);
-    ASSERT_FALSE(tree.empty());
-    EXPECT_GT(tree.stats().leaves, 1u);
-    const Aabb root = [&] {
-      Aabb b;
-      for (const glm::vec3& v : s.positions) b.extend(v);
-      return b;
-    }();
-    for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
-      ASSERT_TRUE(reachable(tree, s, 0, root, t)) << "triangle " << t << " unreachable";
+    for (bool clip : {true, false}) {
+      KdBuildOptions o;
+      o.clip = clip;
+      const KdTree tree = KdTree::build(s.positions, s.triangles, o);
+      ASSERT_FALSE(tree.empty());
+      EXPECT_GT(tree.stats().leaves, 1u);
+      const Aabb root = [&] {
+        Aabb b;
+        for (const glm::vec3& v : s.positions) b.extend(v);
+        return b;
+      }();
+      for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
+        ASSERT_TRUE(reachable(tree, s, 0, root, t)) << "triangle " << t << " unreachable, clip " << clip;
+      }
     }
   }
 }
@@ -196,9 +200,11 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
 
 TEST(KdTree, BuildIsIndependentOfThreadCount) {
   const Soup s = random_soup(3, 70000, 0.02f);  // above the parallel big-node threshold
+  for (bool clip : {true, false}) {
   KdBuildOptions one;
   one.threads = 1;
-  KdBuildOptions two;
+  one.clip = clip;
+  KdBuildOptions two = one;
   two.threads = 2;
   const KdTree a = KdTree::build(s.positions, s.triangles, one);
   const KdTree b = KdTree::build(s.positions, s.triangles, two);
@@ -207,6 +213,7 @@ TEST(KdTree, BuildIsIndependentOfThreadCount) {
   for (std::size_t i = 0; i < a.nodes().size(); ++i) {
     ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits);
     ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count);
+  }
   }
 }
 
@@ -426,16 +433,18 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   for (bool watertight : {false, true}) {
   const KdTree base = KdTree::build(s.positions, s.triangles, with_test(watertight));
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
-  for (const auto& [kt, ki, leaf] : {std::tuple{1.0f, 1.5f, 1}, std::tuple{4.0f, 1.0f, 1}, std::tuple{1.0f, 3.0f, 8}}) {
+  for (const auto& [kt, ki, leaf, clip] : {std::tuple{1.0f, 1.5f, 1, true}, std::tuple{4.0f, 1.0f, 1, true},
+                                          std::tuple{1.0f, 3.0f, 8, true}, std::tuple{2.0f, 1.5f, 1, false}}) {
     KdBuildOptions o = with_test(watertight);
     o.traversal_cost = kt;
     o.intersection_cost = ki;
     o.leaf_size = leaf;
+    o.clip = clip;
     const KdTree other = KdTree::build(s.positions, s.triangles, o);
     trace_kernels().intersect(other, rays.data(), got.data(), rays.size(), true);
     for (std::size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
-          << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << ": "
+          << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << " clip " << clip << ": "
           << test::describe_ray(rays[i]);
     }
   }
