@@ -308,6 +308,7 @@ class Master {
   void handle(Worker& w, proto::SceneReady&& m, std::size_t) {
     if (w.state != Worker::State::Scene || m.hash != scene_hash_) return unexpected(w, "SceneReady");
     w.state = Worker::State::Ready;
+    announce_open_frames(w);
     spdlog::info("worker {} joined: {} cores, build {}; scene ready in {} ms; {} tiles outstanding at most",
                  w.describe(), w.hello.cores, w.hello.build_id, m.load_ms, w.max_outstanding);
     if (link_bytes_per_s_ <= 0 && !probe_running_) {
@@ -512,7 +513,10 @@ class Master {
       f.stats.wire_format = std::string(wire_format_name(options_.wire));
       f.stats.compression = std::string(compression_name(options_.compression));
       queue_.open_frame(static_cast<int>(f.sequence));
-      frames_.emplace(f.sequence, std::move(f));
+      const OpenFrame& opened = frames_.emplace(f.sequence, std::move(f)).first->second;
+      for (auto& [id, w] : workers_) {
+        if (w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
+      }
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
     }
@@ -547,6 +551,23 @@ class Master {
     }
   }
 
+  // FrameSettings once per worker and frame: when the frame opens (the worker builds its
+  // kd-tree while it still traces the frame before), at the latest with its first tile.
+  void announce(Worker& w, const OpenFrame& f) {
+    if (!w.announced.insert(f.sequence).second) return;
+    proto::FrameSettings settings;
+    settings.sequence = f.sequence;
+    settings.frame = f.frame;
+    settings.wire_format = static_cast<std::uint8_t>(options_.wire);
+    settings.compression = static_cast<std::uint8_t>(options_.compression);
+    settings.channels = options_.channels;
+    w.conn->send(settings);
+  }
+
+  void announce_open_frames(Worker& w) {
+    for (const auto& [sequence, f] : frames_) announce(w, f);
+  }
+
   void assign(Worker& w, const TileAssignment& a, Clock::time_point now) {
     const auto sequence = static_cast<std::uint32_t>(a.frame);
     OpenFrame& f = frames_.at(sequence);
@@ -555,15 +576,7 @@ class Master {
       f.started_at = now;
     }
     if (a.reissue) ++f.stats.reissued_tiles;
-    if (w.announced.insert(sequence).second) {
-      proto::FrameSettings settings;
-      settings.sequence = sequence;
-      settings.frame = f.frame;
-      settings.wire_format = static_cast<std::uint8_t>(options_.wire);
-      settings.compression = static_cast<std::uint8_t>(options_.compression);
-      settings.channels = options_.channels;
-      w.conn->send(settings);
-    }
+    announce(w, f);
     proto::TileAssign t;
     t.sequence = sequence;
     t.frame = f.frame;
