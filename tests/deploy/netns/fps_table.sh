@@ -37,6 +37,9 @@ fi
   echo "and rtc-render in build/release). Measured $started on $(nproc) cores, load average $load_before"
   echo "before the run, commit $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)."
   echo
+  echo "A row is link-bound when it reaches 90% of the master's bound. The CPU-bound rows depend on"
+  echo "what else the 2 shared cores run: read them with the cluster's CPU use and the machine's."
+  echo
   cat "$table"
 } > "$here/results.md"
 cat "$here/results.md"
