@@ -17,8 +17,11 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-std::string link_text(double bytes_per_s, const std::string& source) {
+std::string link_text(double bytes_per_s, double line_mbit_per_s, const std::string& source) {
   if (bytes_per_s <= 0) return "link capacity unknown";
+  if (line_mbit_per_s > 0) {
+    return fmt::format("{:.1f} Mbit/s of messages on {:.1f} Mbit/s {}", bytes_per_s * 8 / 1e6, line_mbit_per_s, source);
+  }
   return fmt::format("{:.1f} Mbit/s {}", bytes_per_s * 8 / 1e6, source);
 }
 
@@ -31,7 +34,7 @@ std::string format_frame_line(const FrameStats& s) {
       "frame {} [seq {}]: {:.1f} ms, {:.2f} fps | {:.3f} MB in, {:.1f} MB/s, {}+{} {:.2f}:1 | ", s.frame, s.sequence,
       s.wall_ms, s.fps(), s.wire_bytes / 1e6, s.achieved_mb_per_s(), s.wire_format, s.compression, s.compression_ratio());
   if (s.bound_fps() > 0) {
-    line += fmt::format("link bound {:.2f} fps ({})", s.bound_fps(), link_text(s.link_bytes_per_s, s.link_source));
+    line += fmt::format("link bound {:.2f} fps ({})", s.bound_fps(), link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source));
   } else {
     line += "link bound unknown (not measured yet)";
   }
@@ -57,6 +60,7 @@ std::string frame_json(const FrameStats& s) {
   j["wire_format"] = s.wire_format;
   j["compression"] = s.compression;
   j["link_mbit_per_s"] = s.link_bytes_per_s * 8 / 1e6;
+  j["link_line_mbit_per_s"] = s.link_line_mbit_per_s;
   j["link_source"] = s.link_source;
   j["bound_fps"] = s.bound_fps();
   j["duplicate_tiles"] = s.duplicate_tiles;
@@ -99,6 +103,7 @@ RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
   r.compression = frames.back().compression;
   r.link_source = frames.back().link_source;
   r.link_bytes_per_s = frames.back().link_bytes_per_s;
+  r.link_line_mbit_per_s = frames.back().link_line_mbit_per_s;
   return r;
 }
 
@@ -108,7 +113,7 @@ std::string format_summary(const RunSummary& s) {
                                 s.wire_format, s.compression, s.compression_ratio);
   if (s.median_bound_fps > 0) {
     out += fmt::format("; link bound {:.2f} fps ({}), achieved {:.1f}% of it", s.median_bound_fps,
-                       link_text(s.link_bytes_per_s, s.link_source), 100.0 * s.median_fps / s.median_bound_fps);
+                       link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source), 100.0 * s.median_fps / s.median_bound_fps);
   } else {
     out += "; link bound unknown";
   }
@@ -134,6 +139,7 @@ std::string summary_json(const RunSummary& s) {
   j["wire_format"] = s.wire_format;
   j["compression"] = s.compression;
   j["link_mbit_per_s"] = s.link_bytes_per_s * 8 / 1e6;
+  j["link_line_mbit_per_s"] = s.link_line_mbit_per_s;
   j["link_source"] = s.link_source;
   return j.dump();
 }

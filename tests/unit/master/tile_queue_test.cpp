@@ -157,5 +157,19 @@ TEST(FrameStats, BoundIsLinkCapacityOverBytesPerFrame) {
   EXPECT_NE(summary_json(r).find("\"median_bound_fps\""), std::string::npos);
 }
 
+TEST(FrameStats, GivenLineRateCarriesTcpPayloadOnly) {
+  // 1448 payload bytes per 1538-byte Ethernet frame: Fast Ethernet carries 94.1 Mbit/s of TCP.
+  EXPECT_NEAR(link_payload_bytes_per_s(100) * 8 / 1e6, 94.148, 1e-3);
+  FrameStats s;
+  s.wire_bytes = 8'410'000;
+  s.link_bytes_per_s = link_payload_bytes_per_s(100);
+  s.link_line_mbit_per_s = 100;
+  s.link_source = "given";
+  EXPECT_NEAR(s.bound_fps(), 12.5e6 * 1448 / 1538 / 8'410'000, 1e-9);
+  EXPECT_NE(format_frame_line(s).find("94.1 Mbit/s of messages on 100.0 Mbit/s given"), std::string::npos)
+      << format_frame_line(s);
+  EXPECT_NE(frame_json(s).find("\"link_line_mbit_per_s\":100.0"), std::string::npos) << frame_json(s);
+}
+
 }  // namespace
 }  // namespace rtc
