@@ -128,8 +128,8 @@ PY
     for ns in "$ns_master" "$ns_workers"; do ip -n "$ns" link set lo up; done
     ip -n "$ns_master" link set rtcb-a up
     ip -n "$ns_workers" link set rtcb-b up
-    ip netns exec "$ns_master" tc qdisc add dev rtcb-a root tbf rate "$rate" burst 32kbit latency 400ms
-    ip netns exec "$ns_workers" tc qdisc add dev rtcb-b root tbf rate "$rate" burst 32kbit latency 400ms
+    ip netns exec "$ns_master" tc qdisc add dev rtcb-a root tbf rate "$rate" burst 32kbit latency 400ms overhead 24
+    ip netns exec "$ns_workers" tc qdisc add dev rtcb-b root tbf rate "$rate" burst 32kbit latency 400ms overhead 24
     head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' > "$work/token"
     token_args=(--token-file "$work/token")
     out="$results/cluster_link.jsonl"
