@@ -16,25 +16,11 @@ out="$2"
 shift 2
 [ -r "$base_packages" ] || { echo "runtime-libs: cannot read $base_packages" >&2; exit 1; }
 
-owner() {
-  # dpkg knows a library by the path its package installed; with the merged /usr, ldd and
-  # readlink may give the other spelling (/lib vs /usr/lib).
-  local p candidates=("$1" "$(readlink -f "$1")")
-  for p in "${candidates[@]}"; do
-    candidates+=("${p#/usr}" "/usr${p}")
-  done
-  for p in "${candidates[@]}"; do
-    dpkg-query -S "$p" 2>/dev/null | head -n 1 | cut -d: -f1 && return 0
-  done
-  return 1
-}
-
 mkdir -p "$out/lib/rtc" "$out/share/rtc"
 manifest="$out/share/rtc/runtime-libraries.txt"
-: > "$manifest"
-declare -A seen=()
-copied=0
-skipped=0
+
+# Every library the programs load, once.
+paths=()
 for program in "$@"; do
   [ -f "$program" ] || { echo "runtime-libs: $program does not exist" >&2; exit 1; }
   libs="$(ldd "$program")" || { echo "runtime-libs: ldd $program failed" >&2; exit 1; }
@@ -43,25 +29,53 @@ for program in "$@"; do
     grep 'not found' <<<"$libs" >&2
     exit 1
   fi
-  while read -r path; do
-    [ -n "${seen[$path]:-}" ] && continue
-    seen[$path]=1
-    package="$(owner "$path")" || { echo "runtime-libs: no Debian package owns $path ($program loads it)" >&2; exit 1; }
-    package="${package%%:*}"
-    if grep -qx "$package" "$base_packages"; then
-      skipped=$((skipped + 1))
-      continue
-    fi
-    cp -L "$path" "$out/lib/rtc/$(basename "$path")"
-    if [ -f "/usr/share/doc/$package/copyright" ] && [ ! -f "$out/share/doc/$package/copyright" ]; then
-      mkdir -p "$out/share/doc/$package"
-      cp "/usr/share/doc/$package/copyright" "$out/share/doc/$package/copyright"
-    fi
-    printf '%s %s %s\n' "$(basename "$path")" "$package" "$(dpkg-query -W -f='${Version}' "$package")" >> "$manifest"
-    copied=$((copied + 1))
-  done < <(case "$program" in *.so|*.so.*) echo "$program" ;; esac
-           awk '$2 == "=>" && $3 ~ /^\// { print $3 } $1 ~ /^\// { print $1 }' <<<"$libs")
+  case "$program" in *.so|*.so.*) paths+=("$program") ;; esac
+  mapfile -t -O "${#paths[@]}" paths < <(awk '$2 == "=>" && $3 ~ /^\// { print $3 } $1 ~ /^\// { print $1 }' <<<"$libs")
 done
-sort -o "$manifest" "$manifest"
+mapfile -t paths < <(printf '%s\n' "${paths[@]}" | sort -u)
+
+# Their packages, in one dpkg query. dpkg knows a file by the path its package installed; with
+# the merged /usr, ldd and readlink may give the other spelling (/lib vs /usr/lib).
+spellings() {
+  local real
+  real="$(readlink -f "$1")"
+  printf '%s\n' "$1" "${1#/usr}" "/usr$1" "$real" "${real#/usr}" "/usr$real"
+}
+declare -A owner_of=()
+while IFS= read -r line; do
+  case "$line" in diversion*) continue ;; esac
+  package="${line%%: *}"
+  owner_of["${line#*: }"]="${package%%[:,]*}"
+done < <(for p in "${paths[@]}"; do spellings "$p"; done | sort -u | xargs -d '\n' dpkg-query -S 2>/dev/null || true)
+
+: > "$manifest"
+copied=0
+skipped=0
+for path in "${paths[@]}"; do
+  package=""
+  while read -r spelling; do
+    package="${owner_of[$spelling]:-}"
+    [ -z "$package" ] || break
+  done < <(spellings "$path")
+  [ -n "$package" ] || { echo "runtime-libs: no Debian package owns $path" >&2; exit 1; }
+  if grep -qx "$package" "$base_packages"; then
+    skipped=$((skipped + 1))
+    continue
+  fi
+  cp -L "$path" "$out/lib/rtc/$(basename "$path")"
+  if [ -f "/usr/share/doc/$package/copyright" ] && [ ! -f "$out/share/doc/$package/copyright" ]; then
+    mkdir -p "$out/share/doc/$package"
+    cp "/usr/share/doc/$package/copyright" "$out/share/doc/$package/copyright"
+  fi
+  printf '%s %s\n' "$(basename "$path")" "$package" >> "$manifest"
+  copied=$((copied + 1))
+done
+# Package versions, in one query too.
+# shellcheck disable=SC2016  # dpkg's format, not the shell's
+cut -d' ' -f2 "$manifest" | sort -u | xargs -r dpkg-query -W -f='${Package} ${Version}\n' > "$out/share/rtc/versions.tmp"
+awk 'NR == FNR { version[$1] = $2; next } { print $1, $2, version[$2] }' "$out/share/rtc/versions.tmp" "$manifest" |
+  sort > "$manifest.tmp"
+mv "$manifest.tmp" "$manifest"
+rm -f "$out/share/rtc/versions.tmp"
 echo "runtime-libs: $copied libraries from $(cut -d' ' -f2 "$manifest" | sort -u | wc -l) packages" \
      "($(du -sm "$out/lib/rtc" | cut -f1) MB); $skipped already in the base image"

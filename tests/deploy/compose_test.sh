@@ -53,6 +53,23 @@ fail() { echo "compose_test: FAIL: $*" >&2; exit 1; }
 skip() { echo "compose_test: SKIP: $*"; exit 77; }
 measure() { echo "MEASURE $*"; }
 compose() { timeout "${COMPOSE_TIMEOUT:-120}" "$root/deploy/compose.sh" -p "$project" "$@"; }
+# Runs a long step in the background and waits for it: bash runs a signal's trap only after a
+# foreground command ends, but at once during `wait`.
+in_background() {
+  "$@" &
+  local pid=$! rc=0
+  wait "$pid" || rc=$?
+  return "$rc"
+}
+# Every process this script started that is still running (the engine and the watchdog are not
+# among them: they left the process tree).
+descendants() {
+  local child
+  for child in $(ps -o pid= --ppid "$1"); do
+    echo "$child"
+    descendants "$child"
+  done
+}
 
 # ---- cleanup, on every exit path ---------------------------------------------------------------
 
@@ -83,10 +100,18 @@ cleanup() {
   [ "$status" -ne 0 ] || status=$rc
   trap - EXIT INT TERM
   set +e
-  if [ -n "$host_worker_pid" ] && kill -0 "$host_worker_pid" 2>/dev/null; then
-    kill -TERM "$host_worker_pid"
-    for _ in $(seq 1 20); do kill -0 "$host_worker_pid" 2>/dev/null || break; sleep 0.25; done
-    kill -KILL "$host_worker_pid" 2>/dev/null
+  # A step cut short by a signal (a build, a wait) and the host worker.
+  local running pid alive
+  mapfile -t running < <(descendants $$)
+  if [ ${#running[@]} -gt 0 ]; then
+    kill -TERM "${running[@]}" 2>/dev/null
+    for _ in $(seq 1 20); do
+      alive=0
+      for pid in "${running[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+      [ "$alive" = 1 ] || break
+      sleep 0.25
+    done
+    kill -KILL "${running[@]}" 2>/dev/null
   fi
   if [ "$compose_up" = 1 ]; then
     compose down --volumes --remove-orphans --timeout 10 > "$work/down.log" 2>&1 ||
@@ -121,7 +146,8 @@ cleanup() {
     diff <(echo "$iptables_before") <(iptables_rules) >&2
     status=1
   fi
-  if [ "$keep" = 1 ] || { [ "$status" -ne 0 ] && [ "$status" -ne 77 ]; }; then
+  # Kept for a look when a check failed (not when skipped or interrupted).
+  if [ "$keep" = 1 ] || { [ "$status" -ne 0 ] && [ "$status" -ne 77 ] && [ "$status" -ne 130 ] && [ "$status" -ne 143 ]; }; then
     say "work folder kept: $work"
   else
     rm -rf "$work"
@@ -137,8 +163,8 @@ iptables_rules() { { iptables -S; iptables -t nat -S; } 2>/dev/null; }
 
 # ---- tools ----------------------------------------------------------------------------------------
 
-for tool in docker docker-compose debootstrap dockerd; do
-  command -v "$tool" >/dev/null 2>&1 || fail "$tool is not installed (./deploy/install-deps.sh installs docker.io, docker-compose, debootstrap)"
+for tool in docker docker-compose; do
+  command -v "$tool" >/dev/null 2>&1 || fail "$tool is not installed (./deploy/install-deps.sh installs docker.io and docker-compose)"
 done
 
 # ---- engine: the one that answers, or one of our own -------------------------------------------
@@ -150,6 +176,7 @@ if docker info >/dev/null 2>&1; then
   say "using the Docker engine that answers ($(docker context show 2>/dev/null || echo default))"
 else
   [ "$(id -u)" -eq 0 ] || skip "no Docker engine answers, and starting one needs root"
+  command -v dockerd >/dev/null 2>&1 || fail "dockerd is not installed (./deploy/install-deps.sh installs docker.io)"
   forward_before="$(cat /proc/sys/net/ipv4/ip_forward)"
   iptables_before="$(iptables_rules)"
   mkdir -p "$engine"
@@ -158,6 +185,19 @@ else
       --host "$DOCKER_HOST" --bridge=none --iptables=false --ip-masq=false --ip-forward=false \
       > "$work/dockerd.log" 2>&1 & echo $! > "$work/dockerd.spawned" )
   engine_pid="$(cat "$work/dockerd.spawned")"
+  # A watchdog outside this process tree stops the engine should this script be killed outright
+  # (SIGKILL, as ctest does at its timeout) before its own cleanup runs.
+  # shellcheck disable=SC2016  # expanded by the watchdog shell
+  ( setsid bash -c '
+      test_pid=$1 engine=$2 pid=$3
+      while kill -0 "$test_pid" 2>/dev/null; do sleep 1; done
+      [ -d "$engine" ] || exit 0
+      echo "compose_test watchdog: the test died; stopping its Docker engine (pid $pid)" >&2
+      kill -TERM "$pid" 2>/dev/null
+      for _ in $(seq 1 60); do kill -0 "$pid" 2>/dev/null || break; sleep 0.5; done
+      kill -KILL "$pid" 2>/dev/null
+      findmnt -rn -o TARGET | grep "^$engine/" | sort -r | while read -r m; do umount -l "$m"; done
+      rm -rf "$engine"' _ "$$" "$engine" "$engine_pid" < /dev/null > /dev/null 2>> "$work/watchdog.log" & )
   t0=$SECONDS
   for _ in $(seq 1 60); do
     docker info >/dev/null 2>&1 && break
@@ -177,7 +217,7 @@ fi
 if ! docker image inspect debian:bookworm debian:bookworm-slim >/dev/null 2>&1; then
   t0=$SECONDS
   made_base=1
-  timeout 600 "$root/deploy/make-base-image.sh" || fail "deploy/make-base-image.sh failed"
+  in_background timeout 600 "$root/deploy/make-base-image.sh" || fail "deploy/make-base-image.sh failed"
   measure "base image (debootstrap + import): $((SECONDS - t0)) s"
 fi
 images_before="$(docker images -aq --no-trunc | sort -u)"
@@ -192,9 +232,12 @@ export RTC_PORT
 say "building $image from deploy/Dockerfile (log: $work/build.log)"
 t0=$SECONDS
 # Each log line gets the seconds since the build began, for the time each step took.
-COMPOSE_TIMEOUT=2400 compose build --force-rm master 2>&1 |
-  while IFS= read -r line; do printf '%4d %s\n' $((SECONDS - t0)) "$line"; done > "$work/build.log"
-[ "${PIPESTATUS[0]}" = 0 ] || { tail -n 40 "$work/build.log" >&2; fail "compose build failed (log tail above)"; }
+build_image() {
+  COMPOSE_TIMEOUT=1800 compose build --force-rm master 2>&1 |
+    while IFS= read -r line; do printf '%4d %s\n' $((SECONDS - t0)) "$line"; done > "$work/build.log"
+  return "${PIPESTATUS[0]}"
+}
+in_background build_image || { tail -n 40 "$work/build.log" >&2; fail "compose build failed (log tail above)"; }
 measure "image build (compose build, cold: apt + compiling 3 programs): $((SECONDS - t0)) s"
 say "slowest build steps:"
 awk '$2 == "Step" { if (step != "") printf "  %4d s  %s\n", $1 - start, step; start = $1; step = substr($0, index($0, $5)) }
@@ -206,7 +249,7 @@ grep -q "legacy builder\|Successfully built" "$work/build.log" || say "note: the
 # ---- reference frames ----------------------------------------------------------------------------
 
 mkdir -p "$work/ref"
-timeout 120 "$render" --frames "$frames" --out "$work/ref/r_####.png" > "$work/render.log" 2>&1 ||
+in_background timeout 120 "$render" --frames "$frames" --out "$work/ref/r_####.png" > "$work/render.log" 2>&1 ||
   { cat "$work/render.log" >&2; fail "rtc-render failed"; }
 
 # ---- up: master + workers, health, one worker from the host ------------------------------------
@@ -267,7 +310,9 @@ measure "compose up -> first frame (after the host worker joined): $(elapsed) s"
 
 # ---- the run ends by itself: master exits 0, workers follow the Goodbye ------------------------
 
-code="$(timeout 180 docker wait "$master_id")" || { master_log | tail -n 30 >&2; fail "the master did not finish within 180 s"; }
+in_background timeout 180 docker wait "$master_id" > "$work/master.status" ||
+  { master_log | tail -n 30 >&2; fail "the master did not finish within 180 s"; }
+code="$(cat "$work/master.status")"
 master_log > "$work/master.log"
 [ "$code" = 0 ] || { tail -n 30 "$work/master.log" >&2; fail "the master exited with status $code"; }
 for id in $worker_ids; do
