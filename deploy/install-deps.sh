@@ -1,16 +1,38 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages rtc builds, tests and benchmarks with; safe to run again.
+# Usage: ./deploy/install-deps.sh [--build-only]
+#   --build-only  only what building rtc-master, rtc-worker and rtc-render needs (the build stage
+#                 of deploy/Dockerfile): no test, benchmark or deployment-test tools
 set -euo pipefail
 
+build_only=0
+for arg in "$@"; do
+  case "$arg" in
+    --build-only) build_only=1 ;;
+    -h|--help) sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "install-deps: unknown option \"$arg\" (see --help)" >&2; exit 2 ;;
+  esac
+done
+
+# What building the three programs needs (CMakeLists.txt's find_package list). openimageio-tools
+# too: Debian's OpenImageIOTargets.cmake fails find_package when its programs (iconvert, ...) are absent.
 packages=(
-  build-essential cmake ninja-build pkg-config ccache git
+  build-essential cmake ninja-build pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libassimp-dev libtinyobjloader-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
-  libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev iproute2 iperf3
-  libembree-dev python3 gnuplot-nox
+  libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev
 )
+if [ "$build_only" = 0 ]; then
+  packages+=(
+    ccache git
+    libgtest-dev libgmock-dev libbenchmark-dev libembree-dev
+    iproute2 iperf3 python3 gnuplot-nox
+    # tests/deploy: a Docker engine started by hand (no systemd), compose v1, a base image
+    # made without a registry (debootstrap + docker import)
+    docker.io containerd runc docker-compose debootstrap
+  )
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -18,6 +40,13 @@ for p in "${packages[@]}"; do
     missing+=("$p")
   fi
 done
+if [ "$build_only" = 0 ]; then
+  # The Kubernetes manifest check needs kubectl (for `kubectl kustomize`) and npm (for the
+  # kubernetes-models schemas). Machines may carry newer ones from elsewhere; only when the command
+  # is absent do we fall back to Debian's packages (kubectl 1.20 with kustomize v2, npm 9).
+  command -v kubectl >/dev/null 2>&1 || missing+=(kubernetes-client)
+  command -v npm >/dev/null 2>&1 || missing+=(npm)
+fi
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages already installed"

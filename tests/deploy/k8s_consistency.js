@@ -1,0 +1,98 @@
+// Cross-document checks of the rendered deploy/k8s that no schema can make: the Service selects
+// the master's pods and the workers connect to it by name and port, each worker renders on as
+// many threads as the CPU it requests, every Secret and PVC a pod mounts is in the render, the
+// pods run as the image's non-root user, and the workers spread over nodes.
+// usage: node k8s_consistency.js FILE   (FILE "-" reads standard input; one kubectl kustomize render)
+'use strict';
+const fs = require('fs');
+const yaml = require('js-yaml');
+
+const file = process.argv[2] || '-';
+const docs = yaml.loadAll(fs.readFileSync(file === '-' ? 0 : file, 'utf8')).filter(Boolean);
+const problems = [];
+let checks = 0;
+function check(ok, what) {
+  checks++;
+  if (!ok) problems.push(what);
+}
+const find = (kind, name) => docs.find((d) => d.kind === kind && d.metadata && d.metadata.name === name);
+const matches = (selector, labels) =>
+  Object.entries(selector || {}).every(([k, v]) => labels && labels[k] === v);
+
+const master = find('Deployment', 'rtc-master');
+const worker = find('Deployment', 'rtc-worker');
+const service = find('Service', 'rtc-master');
+check(master && worker && service, 'the render has Deployments rtc-master and rtc-worker and Service rtc-master');
+if (problems.length === 0) {
+  const masterPod = master.spec.template;
+  const workerPod = worker.spec.template;
+  check(matches(service.spec.selector, masterPod.metadata.labels), 'Service rtc-master selects the master pods');
+  check(!matches(service.spec.selector, workerPod.metadata.labels), 'Service rtc-master does not select worker pods');
+  for (const d of [master, worker]) {
+    check(matches(d.spec.selector.matchLabels, d.spec.template.metadata.labels),
+          `${d.metadata.name}: selector matches its pod template`);
+  }
+  check(master.spec.replicas === 1, 'exactly one master');
+
+  const masterContainer = masterPod.spec.containers[0];
+  const workerContainer = workerPod.spec.containers[0];
+  // A flag's value, also inside a `sh -c` script (split at white space and line continuations).
+  const argAfter = (c, flag) => {
+    const argv = [...(c.command || []), ...(c.args || [])].flatMap((a) => a.split(/[\s\\]+/).filter(Boolean));
+    const i = argv.indexOf(flag);
+    return i >= 0 ? argv[i + 1] : undefined;
+  };
+  const listen = argAfter(masterContainer, '--listen') || '';
+  const masterPort = Number(listen.split(':').pop());
+  check(masterContainer.ports.some((p) => p.containerPort === masterPort), `master's container port is its --listen ${listen}`);
+  const connect = argAfter(workerContainer, '--connect') || '';
+  const [host, port] = connect.split(':');
+  check(host === service.metadata.name, `workers --connect ${connect} names the Service ${service.metadata.name}`);
+  const servicePort = service.spec.ports.find((p) => p.port === Number(port));
+  check(servicePort !== undefined, `workers --connect ${connect}: the Service has port ${port}`);
+  if (servicePort) {
+    const target = servicePort.targetPort;
+    const targetPort = typeof target === 'string' ? (masterContainer.ports.find((p) => p.name === target) || {}).containerPort : target;
+    check(targetPort === masterPort, `Service port ${port} reaches the master's --listen port ${masterPort}`);
+  }
+  check(argAfter(masterContainer, '--token-file') !== undefined && argAfter(workerContainer, '--token-file') !== undefined,
+        'master and workers use --token-file');
+
+  // Threads follow the CPU request: --threads $(RTC_THREADS), RTC_THREADS = requests.cpu.
+  const threads = argAfter(workerContainer, '--threads');
+  const env = (workerContainer.env || []).find((e) => `$(${e.name})` === threads);
+  const ref = env && env.valueFrom && env.valueFrom.resourceFieldRef;
+  check(ref && ref.resource === 'requests.cpu' && (ref.containerName || workerContainer.name) === workerContainer.name,
+        `worker --threads ${threads} comes from its own requests.cpu`);
+  const res = workerContainer.resources || {};
+  check(res.requests && res.limits && String(res.requests.cpu) === String(res.limits.cpu),
+        'worker CPU request equals its limit (threads = CPUs it may use)');
+
+  // Spread over nodes.
+  const anti = workerPod.spec.affinity && workerPod.spec.affinity.podAntiAffinity;
+  const terms = anti ? [...(anti.preferredDuringSchedulingIgnoredDuringExecution || []).map((t) => t.podAffinityTerm),
+                        ...(anti.requiredDuringSchedulingIgnoredDuringExecution || [])] : [];
+  check(terms.some((t) => t.topologyKey === 'kubernetes.io/hostname' && matches(t.labelSelector.matchLabels, workerPod.metadata.labels)),
+        'worker podAntiAffinity on kubernetes.io/hostname selects the worker pods');
+
+  for (const d of [master, worker]) {
+    const pod = d.spec.template.spec;
+    check(pod.securityContext && pod.securityContext.runAsNonRoot === true && pod.securityContext.runAsUser === 10001,
+          `${d.metadata.name}: runs as the image's user 10001, non-root`);
+    for (const v of pod.volumes || []) {
+      if (v.secret) check(find('Secret', v.secret.secretName), `${d.metadata.name}: Secret ${v.secret.secretName} is in the render`);
+      if (v.persistentVolumeClaim) {
+        check(find('PersistentVolumeClaim', v.persistentVolumeClaim.claimName),
+              `${d.metadata.name}: PVC ${v.persistentVolumeClaim.claimName} is in the render`);
+      }
+    }
+  }
+  const hpa = docs.find((d) => d.kind === 'HorizontalPodAutoscaler');
+  if (hpa) {
+    check(hpa.spec.scaleTargetRef.kind === 'Deployment' && hpa.spec.scaleTargetRef.name === 'rtc-worker',
+          'the HorizontalPodAutoscaler scales Deployment rtc-worker');
+  }
+}
+for (const p of problems) console.error(`FAIL ${p}`);
+console.log(`${checks - problems.length} passed, ${problems.length} failed`);
+process.exit(problems.length ? 1 : 0);
