@@ -42,9 +42,7 @@ int run(int argc, char** argv) {
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
-  app.add_option("--kd-clip", kd_clip, "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, 2-4x slower builds): auto (on unless meshes move), on, off")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->capture_default_str();
+  rtc::add_kd_clip_option(app, kd_clip);
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");

@@ -8,6 +8,7 @@
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
+#include "common/scene/scene_cli.h"
 #include "protocol/auth.h"
 #include "worker/worker_client.h"
 
@@ -21,9 +22,7 @@ int run(int argc, char** argv) {
   app.add_option("--threads", o.threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--token-file", token_file, "file holding the shared token the master requires");
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
-  app.add_option("--kd-clip", kd_clip, "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, 2-4x slower builds): auto (on unless meshes move), on, off")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->capture_default_str();
+  rtc::add_kd_clip_option(app, kd_clip);
   app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");
   app.add_option("--retry-seconds", o.retry_seconds,
                  "give up when the master has been unreachable this long (0: retry for ever)")

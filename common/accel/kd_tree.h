@@ -89,9 +89,10 @@ struct KdBuildOptions {
   bool watertight = false;
   /// Perfect splits (Wald & Havran 2006, section 4.3): a triangle that straddles a split plane
   /// is clipped to each child, so its bounds there are those of the part inside, not its box
-  /// clamped to the child. Deeper trees with fewer references and a lower SAH cost; traces up
-  /// to 2x faster on scenes of long thin triangles (spd-rings) and 5-30% on most others, for
-  /// builds 2-4x slower. Off: clamped boxes (faster builds). The renderer turns it off for
+  /// clamped to the child. Deeper trees with fewer references and a lower SAH cost: 2.1-2.3x
+  /// faster tracing on long thin triangles (spd-rings), up to +40% on some other scenes, within
+  /// noise on the small ones, for builds 1.0-5.3x slower (tests/bench/results/kd_clip.md).
+  /// Off: clamped boxes (faster builds). The renderer turns it off for
   /// trees rebuilt every frame (scenes whose meshes move) unless told otherwise (KdClip).
   bool clip = true;
 };

@@ -38,6 +38,16 @@ inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
       ->check(CLI::IsMember({"wald", "watertight"}));
 }
 
+/// Registers --kd-clip auto|on|off (rtc-render, rtc-worker, rtc-bench) into `text`, checked;
+/// rtc::parse_kd_clip() turns it into the KdClip the renderer takes.
+inline void add_kd_clip_option(CLI::App& app, std::string& text) {
+  app.add_option("--kd-clip", text,
+                 "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, "
+                 "1-5x slower builds): auto (on unless meshes move), on, off")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
+}
+
 /// Loads the scene (or the built-in one), applies the overrides and logs what was loaded.
 /// Throws rtc::Error naming the file for a bad scene.
 inline Scene load_scene_from_cli(const SceneCliOptions& o) {

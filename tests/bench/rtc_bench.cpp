@@ -22,6 +22,7 @@
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
+#include "common/scene/scene_cli.h"
 #include "common/base/timer.h"
 #include "common/render/renderer.h"
 #include "common/render/shading.h"
@@ -224,9 +225,7 @@ int run(int argc, char** argv) {
   app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
       ->check(CLI::Range(0, 60));
   std::string kd_clip_text = "auto";
-  app.add_option("--kd-clip", kd_clip_text, "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, 2-4x slower builds): auto (on unless meshes move), on, off")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->capture_default_str();
+  rtc::add_kd_clip_option(app, kd_clip_text);
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;

@@ -1044,7 +1044,12 @@ def main():
     parser.add_argument("--oiiotool", default="oiiotool")
     parser.add_argument("--keep", action="store_true", help="keep the temporary folder")
     args = parser.parse_args()
+    return run_case(args.case, lambda: Case(args), CASES[args.case])
 
+
+def run_case(name, make_case, body):
+    """Runs `body(case)` on the case `make_case()` builds; prints PASS, FAIL or ERROR with the
+    time, dumps the processes' logs on failure and always cleans up. Returns the exit status."""
     # ctest's timeout sends SIGTERM first: turn it into an exception so the cleanup runs.
     def on_term(signum, _frame):
         raise Failure(f"interrupted by signal {signum}")
@@ -1052,18 +1057,18 @@ def main():
     signal.signal(signal.SIGTERM, on_term)
     signal.signal(signal.SIGINT, on_term)
 
-    case = Case(args)
+    case = make_case()
     start = time.monotonic()
     status = 1
     try:
-        CASES[args.case](case)
+        body(case)
         status = 0
-        print(f"PASS [{args.case}] in {time.monotonic() - start:.1f} s")
+        print(f"PASS [{name}] in {time.monotonic() - start:.1f} s")
     except Failure as e:
-        print(f"FAIL [{args.case}] after {time.monotonic() - start:.1f} s: {e}")
+        print(f"FAIL [{name}] after {time.monotonic() - start:.1f} s: {e}")
         case.dump_logs()
     except Exception:
-        print(f"ERROR [{args.case}]:")
+        print(f"ERROR [{name}]:")
         traceback.print_exc(file=sys.stdout)
         case.dump_logs()
     finally:

@@ -23,16 +23,14 @@ import os
 import re
 import resource
 import shutil
-import signal
 import subprocess
 import sys
 import time
-import traceback
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "cluster"))
 import cluster_test as ct  # noqa: E402  (path set just above)
-from cluster_test import Failure, fail  # noqa: E402
+from cluster_test import fail  # noqa: E402
 
 WORKERS = 3
 LINK_MBPS = 100  # the line rate netns-cluster.sh gives each link (with_netns_cluster.sh 3 100mbit)
@@ -282,30 +280,8 @@ def main():
             print(f"{var} is not set: run this under tests/deploy/netns/with_netns_cluster.sh", file=sys.stderr)
             return 2
 
-    def on_term(signum, _frame):
-        raise Failure(f"interrupted by signal {signum}")
-
-    signal.signal(signal.SIGTERM, on_term)
-    signal.signal(signal.SIGINT, on_term)
-
-    c = NetnsCase(args)
-    start = time.monotonic()
-    status = 1
-    try:
-        {"check": case_check, "table": case_table}[args.case](c)
-        status = 0
-        print(f"PASS [netns {args.case}] in {time.monotonic() - start:.1f} s")
-    except Failure as e:
-        print(f"FAIL [netns {args.case}] after {time.monotonic() - start:.1f} s: {e}")
-        c.dump_logs()
-    except Exception:
-        print(f"ERROR [netns {args.case}]:")
-        traceback.print_exc(file=sys.stdout)
-        c.dump_logs()
-    finally:
-        c.cleanup()
-    sys.stdout.flush()
-    return status
+    return ct.run_case(f"netns {args.case}", lambda: NetnsCase(args),
+                       {"check": case_check, "table": case_table}[args.case])
 
 
 if __name__ == "__main__":
