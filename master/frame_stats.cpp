@@ -39,6 +39,13 @@ std::string format_frame_line(const FrameStats& s) {
     line += "link bound unknown (not measured yet)";
   }
   line += " | tiles" + tiles;
+  if (s.temporal) {
+    line += fmt::format(" | traced {}/{} tiles ({})", s.tiles_traced, s.tiles_total, s.temporal_why);
+    if (s.tiles_traced < s.tiles_total && s.full_render_ms > 0) {
+      line += fmt::format(", work {:.1f} of {:.1f} ms ({:.1f}x less), {:.3f} of {:.3f} MB", s.render_ms, s.full_render_ms,
+                          s.full_render_ms / std::max(s.render_ms, 1e-3), s.wire_bytes / 1e6, s.full_wire_bytes / 1e6);
+    }
+  }
   if (s.reissued_tiles > 0) line += fmt::format(" | {} tail tiles re-issued, {} duplicates dropped", s.reissued_tiles, s.duplicate_tiles);
   if (!s.written.empty()) line += " -> " + s.written;
   return line;
@@ -67,6 +74,11 @@ std::string frame_json(const FrameStats& s) {
   j["duplicate_bytes"] = s.duplicate_bytes;
   j["reissued_tiles"] = s.reissued_tiles;
   j["render_ms"] = s.render_ms;
+  if (s.temporal) {
+    j["temporal"] = {{"tiles_traced", s.tiles_traced}, {"tiles_total", s.tiles_total}, {"why", s.temporal_why},
+                     {"mark_bytes", s.mark_bytes}, {"full_render_ms", s.full_render_ms},
+                     {"full_wire_bytes", s.full_wire_bytes}};
+  }
   j["rays"] = {{"primary", s.primary_rays}, {"shadow", s.shadow_rays}, {"reflection", s.reflection_rays}};
   j["tiles_by_worker"] = s.tiles_by_worker;
   if (!s.written.empty()) j["file"] = s.written;

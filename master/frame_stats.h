@@ -39,6 +39,13 @@ struct FrameStats {
   std::string link_source;      ///< "given", "measured" or "unknown"
   std::string wire_format, compression;
   std::string written;  ///< output file, empty when frames are discarded
+  /// Temporal coherence (common/render/temporal.h); `temporal` false when it is off.
+  bool temporal = false;
+  std::uint32_t tiles_traced = 0, tiles_total = 0;  ///< tiles handed out / in the frame
+  std::string temporal_why;            ///< e.g. "first frame", "1 mesh and 0 lights moved"
+  std::uint64_t mark_bytes = 0;        ///< TileMarks messages on the wire (in wire_bytes)
+  double full_render_ms = 0;           ///< render_ms of the last frame traced whole (0: none yet)
+  std::uint64_t full_wire_bytes = 0;   ///< wire_bytes of that frame
 
   [[nodiscard]] double fps() const { return interval_ms > 0 ? 1000.0 / interval_ms : 0.0; }
   [[nodiscard]] double achieved_mb_per_s() const { return interval_ms > 0 ? wire_bytes / interval_ms / 1000.0 : 0.0; }

@@ -13,6 +13,7 @@
 #include "common/base/log.h"
 #include "common/image/image.h"
 #include "common/image/pixel_format.h"
+#include "common/render/temporal_cli.h"
 #include "common/scene/scene_cli.h"
 #include "master/master_server.h"
 #include "protocol/auth.h"
@@ -26,6 +27,7 @@ int run(int argc, char** argv) {
   rtc::MasterOptions o;
   std::string frames_text, wire_text, compress_text = std::string(rtc::compression_name(rtc::kDefaultCompression)), token_file, log_level = "info";
   bool exr_float = false, no_depth = false, no_normal = false;
+  std::string temporal_text = "auto";
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--listen", o.listen, "HOST:PORT to accept workers on; port 0 picks a free one; a non-loopback "
                                        "address needs --token-file")
@@ -61,6 +63,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0, 3600))
       ->capture_default_str();
   app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening");
+  rtc::add_temporal_options(app, temporal_text, o.mark_cells);
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
@@ -72,6 +75,7 @@ int run(int argc, char** argv) {
   const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
+  o.temporal = rtc::parse_temporal_mode(temporal_text);
   // EXR and TIFF store float pixels (write_image); PNG, JPEG and PPM store 8-bit sRGB.
   const std::optional<rtc::ImageFileKind> kind =
       o.out_pattern.empty() ? std::nullopt : rtc::image_file_kind(o.out_pattern);

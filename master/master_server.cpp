@@ -36,6 +36,23 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
+/// Copies the rectangle (x, y, w, h) of `src` into the same place of `dst` (same size and
+/// channels): a clean tile's pixels from the canvas into a new frame.
+void copy_rect(const Image& src, Image& dst, int x, int y, int w, int h) {
+  for (int row = y; row < y + h; ++row) {
+    const std::size_t first = static_cast<std::size_t>(row) * static_cast<std::size_t>(src.width) + static_cast<std::size_t>(x);
+    const auto n = static_cast<std::size_t>(w);
+    std::copy_n(src.rgba.begin() + static_cast<std::ptrdiff_t>(4 * first), 4 * n, dst.rgba.begin() + static_cast<std::ptrdiff_t>(4 * first));
+    if (!src.depth.empty() && !dst.depth.empty()) {
+      std::copy_n(src.depth.begin() + static_cast<std::ptrdiff_t>(first), n, dst.depth.begin() + static_cast<std::ptrdiff_t>(first));
+    }
+    if (!src.normal.empty() && !dst.normal.empty()) {
+      std::copy_n(src.normal.begin() + static_cast<std::ptrdiff_t>(3 * first), 3 * n,
+                  dst.normal.begin() + static_cast<std::ptrdiff_t>(3 * first));
+    }
+  }
+}
+
 struct Worker {
   enum class State { AwaitHello, AwaitAuth, Scene, Ready, Closed };
 
@@ -55,6 +72,9 @@ struct Worker {
   Clock::time_point probe_sent;
   std::map<std::pair<std::uint32_t, std::uint32_t>, Clock::time_point> assigned_at;  // (seq, tile)
   std::uint64_t tiles_accepted = 0;
+  /// TileMarks received for tiles whose TileResult has not come yet, by (seq, tile), with
+  /// their bytes on the wire.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, std::pair<proto::TileMarks, std::size_t>> pending_marks;
   bool rejected = false;  // an Error was sent; closing once it is flushed
 
   [[nodiscard]] std::string describe() const {
@@ -69,6 +89,7 @@ struct Worker {
 struct OpenFrame {
   std::uint32_t sequence = 0;
   int frame = 0;
+  std::uint64_t plan = 0;  ///< TemporalTracker plan id (temporal coherence)
   Image image;
   bool started = false;
   Clock::time_point started_at;
@@ -105,6 +126,12 @@ class Master {
       link_source_ = "given";
     }
     next_frame_ = options_.first_frame;
+    const bool several = options_.last_frame > options_.first_frame || options_.loop_seconds > 0;
+    if (several && temporal_for(scene, options_.temporal)) {
+      tracker_ = std::make_unique<TemporalTracker>(scene, mark_grid_for(scene, options_.mark_cells),
+                                                   queue_.tiles_per_frame());
+      canvas_ = Image(width_, height_, (options_.channels & kChannelDepth) != 0, (options_.channels & kChannelNormal) != 0);
+    }
   }
 
   int run() {
@@ -116,6 +143,21 @@ class Master {
                  scene_bytes_.size(), proto::to_hex(scene_hash_).substr(0, 16), width_, height_,
                  queue_.tiles_per_frame(), options_.tile_size, wire_format_name(options_.wire),
                  compression_name(options_.compression));
+    if (tracker_) {
+      const MarkGrid& g = tracker_->grid();
+      if (g.empty()) {
+        spdlog::info("temporal coherence on: no mesh moves; after the first frame only tiles shaded by a moved light are traced");
+      } else {
+        spdlog::info("temporal coherence on: after the first frame only tiles whose rays crossed space a moving mesh left or "
+                     "entered are traced; {}x{}x{} voxels over [{:.4g} {:.4g} {:.4g}]-[{:.4g} {:.4g} {:.4g}]",
+                     g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z);
+      }
+    } else {
+      spdlog::info("temporal coherence off ({})", options_.temporal == TemporalMode::Off ? "--temporal off"
+                                                   : options_.last_frame == options_.first_frame && options_.loop_seconds <= 0
+                                                       ? "one frame"
+                                                       : "the camera moves");
+    }
     io_.run();
     if (writer_) {
       writer_->flush();
@@ -311,6 +353,16 @@ class Master {
   void handle(Worker& w, proto::SceneReady&& m, std::size_t) {
     if (w.state != Worker::State::Scene || m.hash != scene_hash_) return unexpected(w, "SceneReady");
     w.state = Worker::State::Ready;
+    if (tracker_) {
+      const MarkGrid& g = tracker_->grid();
+      proto::MarkGrid grid;
+      for (int k = 0; k < 3; ++k) {
+        grid.lo[k] = g.lo[k];
+        grid.hi[k] = g.hi[k];
+        grid.dims[k] = static_cast<std::uint32_t>(g.dims[k]);
+      }
+      w.conn->send(grid);
+    }
     announce_open_frames(w);
     spdlog::info("worker {} joined: {} cores, build {}; scene ready in {} ms; {} tiles outstanding at most",
                  w.describe(), w.hello.cores, w.hello.build_id, m.load_ms, w.max_outstanding);
@@ -353,6 +405,44 @@ class Master {
     dispatch();
   }
 
+  // Tiles a later frame left waiting on a trace that just reported: trace them for that frame,
+  // or give them the pixels just traced (already in the canvas).
+  void decide_waiting(const std::vector<TemporalDecision>& decisions) {
+    for (const TemporalDecision& d : decisions) {
+      const auto sit = plan_sequence_.find(d.plan);
+      if (sit == plan_sequence_.end()) continue;
+      const auto fit = frames_.find(sit->second);
+      if (fit == frames_.end()) continue;
+      OpenFrame& f = fit->second;
+      if (d.trace) {
+        queue_.release(static_cast<int>(f.sequence), d.tile);
+        ++f.stats.tiles_traced;
+      } else {
+        const TileRect& t = queue_.rect(d.tile);
+        copy_rect(canvas_, f.image, static_cast<int>(t.x), static_cast<int>(t.y), static_cast<int>(t.width),
+                  static_cast<int>(t.height));
+        queue_.keep(static_cast<int>(f.sequence), d.tile);
+      }
+    }
+  }
+
+  void handle(Worker& w, proto::TileMarks&& m, std::size_t wire) {
+    if (w.state != Worker::State::Ready || !tracker_) return unexpected(w, "TileMarks");
+    if (!queue_.holds(w.id, static_cast<int>(m.sequence), m.tile)) {
+      return reject(w, proto::ErrorCode::Protocol,
+                    "sent marks for tile " + std::to_string(m.tile) + " of frame sequence " + std::to_string(m.sequence) +
+                        " that it was not given");
+    }
+    const std::uint32_t voxels = tracker_->grid().voxel_count();
+    if ((!m.path.empty() && m.path.back() >= voxels) || (!m.shadow.empty() && m.shadow.back() >= voxels)) {
+      return reject(w, proto::ErrorCode::Protocol,
+                    "sent marks for tile " + std::to_string(m.tile) + " outside the " + std::to_string(voxels) +
+                        "-voxel mark grid");
+    }
+    const auto key = std::make_pair(m.sequence, m.tile);
+    w.pending_marks[key] = {std::move(m), wire};
+  }
+
   void handle(Worker& w, proto::TileResult&& r, std::size_t wire) {
     if (w.state != Worker::State::Ready) return unexpected(w, "TileResult");
     if (!queue_.holds(w.id, static_cast<int>(r.sequence), r.tile)) {
@@ -383,10 +473,28 @@ class Master {
       if (!error.empty()) return reject(w, proto::ErrorCode::Protocol, "bad pixels in tile " + std::to_string(r.tile) + ": " + error);
     }
     const TileOutcome outcome = queue_.complete(w.id, static_cast<int>(r.sequence), r.tile);
+    std::optional<std::pair<proto::TileMarks, std::size_t>> marks;
+    if (const auto mit = w.pending_marks.find(key); mit != w.pending_marks.end()) {
+      marks = std::move(mit->second);
+      w.pending_marks.erase(mit);
+    }
     if (outcome == TileOutcome::Accepted) {
       OpenFrame& f = fit->second;
       f.image.blit(tile_, static_cast<int>(r.x), static_cast<int>(r.y));
       FrameStats& s = f.stats;
+      if (tracker_) {
+        TileMarks tm;
+        if (marks) {
+          tm.shaded = marks->first.shaded;
+          tm.path = std::move(marks->first.path);
+          tm.shadow = std::move(marks->first.shadow);
+          s.wire_bytes += marks->second;
+          s.mark_bytes += marks->second;
+        }
+        canvas_.blit(tile_, static_cast<int>(r.x), static_cast<int>(r.y));
+        // No marks (a worker that sent none): the tile is traced again next time.
+        decide_waiting(tracker_->done(r.tile, f.plan, marks ? &tm : nullptr));
+      }
       s.wire_bytes += wire;
       s.pixel_bytes += r.pixels.size();
       s.raw_bytes += r.raw_size;
@@ -515,10 +623,38 @@ class Master {
       f.stats.frame = f.frame;
       f.stats.wire_format = std::string(wire_format_name(options_.wire));
       f.stats.compression = std::string(compression_name(options_.compression));
-      queue_.open_frame(static_cast<int>(f.sequence));
+      std::uint32_t traced = queue_.tiles_per_frame();
+      if (tracker_) {
+        // Temporal coherence: only the dirty tiles are handed out; the others keep the pixels
+        // of their last trace, which are final (a tile still out is always dirty).
+        const TemporalPlan plan = tracker_->plan(f.frame);
+        f.plan = plan.id;
+        traced = plan.dirty_count;
+        f.stats.temporal = true;
+        f.stats.tiles_traced = plan.dirty_count;
+        f.stats.tiles_total = queue_.tiles_per_frame();
+        f.stats.temporal_why = plan.why;
+        f.stats.full_render_ms = full_render_ms_;
+        f.stats.full_wire_bytes = full_wire_bytes_;
+        for (const TileRect& t : queue_.tiles()) {
+          if (plan.dirty[t.index] == TemporalPlan::kKeep) {
+            copy_rect(canvas_, f.image, static_cast<int>(t.x), static_cast<int>(t.y), static_cast<int>(t.width),
+                      static_cast<int>(t.height));
+          }
+        }
+        queue_.open_frame(static_cast<int>(f.sequence), &plan.dirty);
+        plan_sequence_[plan.id] = f.sequence;
+        traced += plan.waiting;  // may be traced: announce the frame
+      } else {
+        queue_.open_frame(static_cast<int>(f.sequence));
+      }
+      if (traced == 0) {
+        f.started = true;
+        f.started_at = Clock::now();
+      }
       const OpenFrame& opened = frames_.emplace(f.sequence, std::move(f)).first->second;
       for (auto& [id, w] : workers_) {
-        if (w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
+        if (traced > 0 && w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
       }
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
@@ -528,6 +664,12 @@ class Master {
   void dispatch() {
     if (done_) return;
     open_frames();
+    // A frame with nothing to trace (temporal coherence) is done as it opens.
+    for (int guard = 0; guard < 1024 && queue_.oldest_done(); ++guard) {
+      finish_frames();
+      if (done_) return;
+      open_frames();
+    }
     // While the link probe runs nobody else sends: tiles on the same link would make the
     // capacity look smaller than it is (measured: 75 instead of 95 Mbit/s on a 100 Mbit link).
     if (probe_running_) return;
@@ -597,6 +739,7 @@ class Master {
       const auto sequence = static_cast<std::uint32_t>(*done);
       auto node = frames_.extract(sequence);
       OpenFrame& f = node.mapped();
+      plan_sequence_.erase(f.plan);
       const Clock::time_point now = Clock::now();
       f.stats.wall_ms = ms_between(f.started_at, now);
       f.stats.interval_ms = ms_between(last_complete_, now);
@@ -604,6 +747,10 @@ class Master {
       f.stats.link_bytes_per_s = link_bytes_per_s_;
       f.stats.link_line_mbit_per_s = link_source_ == "given" ? options_.link_mbps : 0.0;
       f.stats.link_source = link_bytes_per_s_ > 0 ? link_source_ : "unknown";
+      if (f.stats.temporal && f.stats.tiles_traced == f.stats.tiles_total) {
+        full_render_ms_ = f.stats.render_ms;
+        full_wire_bytes_ = f.stats.wire_bytes;
+      }
       for (auto& [id, w] : workers_) {
         if (w->state != Worker::State::Closed && w->announced.erase(sequence)) {
           proto::FrameEnd end;
@@ -764,6 +911,11 @@ class Master {
   std::uint32_t next_sequence_ = 0;
   int next_frame_ = 0;
   Image tile_;  // scratch for decoding
+  std::unique_ptr<TemporalTracker> tracker_;  // null: temporal coherence off
+  Image canvas_;                              // every tile's latest pixels (temporal coherence)
+  std::map<std::uint64_t, std::uint32_t> plan_sequence_;  // tracker plan id -> frame sequence
+  double full_render_ms_ = 0;                 // the last frame traced whole: workers' time
+  std::uint64_t full_wire_bytes_ = 0;         // and its bytes on the wire
   std::string current_type_;  // of the message being handled, for errors
   double tile_latency_ms_ = 0;
 

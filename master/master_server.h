@@ -10,6 +10,7 @@
 
 #include "common/image/image.h"
 #include "common/image/pixel_format.h"
+#include "common/render/temporal.h"
 #include "common/scene/scene.h"
 
 namespace rtc {
@@ -37,6 +38,11 @@ struct MasterOptions {
   int auth_timeout_ms = 10000;       ///< time a new connection has to authenticate
   int drain_seconds = 30;            ///< after SIGINT/SIGTERM: time to finish frames in flight
   std::uint32_t probe_bytes = 4u << 20;  ///< link measurement size (0.34 s at 100 Mbit/s)
+  /// Object-space temporal coherence: after a frame, hand out only the tiles whose rays
+  /// crossed space that a moving mesh left or entered (or that a moved light shades), keep the
+  /// other tiles' pixels (common/render/temporal.h).
+  TemporalMode temporal = TemporalMode::Auto;
+  int mark_cells = kDefaultMarkCells;  ///< mark grid cells along its longest axis
 };
 
 /// Runs until every frame is written (exit 0), a signal stops it (exit 0 after the frames in

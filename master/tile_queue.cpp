@@ -61,12 +61,38 @@ TileQueue::TileQueue(int width, int height, int tile_size)
   for (std::uint32_t i = 0; i < order_.size(); ++i) position_[order_[i].index] = i;
 }
 
-void TileQueue::open_frame(int frame) {
+void TileQueue::open_frame(int frame, const std::vector<std::uint8_t>* needed) {
   RTC_CHECK(frames_.count(frame) == 0, "TileQueue::open_frame: frame opened twice");
+  RTC_CHECK(needed == nullptr || needed->size() == order_.size(), "TileQueue::open_frame: one entry per tile");
   FrameState& f = frames_[frame];
   f.tiles.resize(order_.size());
-  for (const TileRect& r : order_) f.waiting.push_back(r.index);
+  for (const TileRect& r : order_) {
+    const std::uint8_t need = needed != nullptr ? (*needed)[r.index] : 1;
+    if (need == 0) {
+      f.tiles[r.index].done = true;
+      ++f.done;
+    } else if (need == 1) {
+      f.waiting.push_back(r.index);
+    } else {
+      f.tiles[r.index].held = true;
+    }
+  }
   open_order_.push_back(frame);
+}
+
+void TileQueue::release(int frame, std::uint32_t tile) {
+  const auto it = frames_.find(frame);
+  if (it == frames_.end() || tile >= it->second.tiles.size() || !it->second.tiles[tile].held) return;
+  it->second.tiles[tile].held = false;
+  it->second.waiting.push_back(tile);
+}
+
+void TileQueue::keep(int frame, std::uint32_t tile) {
+  const auto it = frames_.find(frame);
+  if (it == frames_.end() || tile >= it->second.tiles.size() || !it->second.tiles[tile].held) return;
+  it->second.tiles[tile].held = false;
+  it->second.tiles[tile].done = true;
+  ++it->second.done;
 }
 
 std::optional<TileAssignment> TileQueue::next_for(WorkerId worker, Clock::time_point now) {

@@ -45,8 +45,17 @@ class TileQueue {
   [[nodiscard]] std::uint32_t tiles_per_frame() const { return static_cast<std::uint32_t>(order_.size()); }
   [[nodiscard]] const std::vector<TileRect>& tiles() const { return order_; }
 
-  /// Adds a frame's tiles at the back of the queue. Frames must be opened once each.
-  void open_frame(int frame);
+  /// Adds a frame's tiles at the back of the queue. Frames must be opened once each. With
+  /// `needed` (one entry per tile index, temporal coherence: TemporalPlan::dirty), tiles with
+  /// 1 wait to be handed out, tiles with 0 are done from the start (their pixels come from
+  /// elsewhere), tiles with 2 are held: neither handed out nor done until release() or keep().
+  void open_frame(int frame, const std::vector<std::uint8_t>* needed = nullptr);
+  /// A held tile of an open frame joins the back of the queue.
+  void release(int frame, std::uint32_t tile);
+  /// A held tile of an open frame is done without being traced.
+  void keep(int frame, std::uint32_t tile);
+  /// Whether the oldest open frame has all its tiles done (pop_done_frame would return it).
+  [[nodiscard]] bool oldest_done() const { return !open_order_.empty() && frame_done(open_order_.front()); }
   [[nodiscard]] std::size_t frames_open() const { return frames_.size(); }
   [[nodiscard]] bool is_open(int frame) const { return frames_.count(frame) != 0; }
 
@@ -89,6 +98,7 @@ class TileQueue {
   struct TileState {
     std::set<WorkerId> holders;
     bool done = false;
+    bool held = false;  ///< opened neither waiting nor done (release() or keep() decides)
     Clock::time_point assigned_at{};  ///< when the first current holder got it
   };
   struct FrameState {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <iterator>
@@ -26,6 +27,10 @@ constexpr std::uint32_t prefixed(std::size_t n) { return static_cast<std::uint32
 /// TileResult's fixed fields before the pixel blob's length prefix.
 constexpr std::uint32_t kTileResultFixed = 4 + 4 + 4 + 4 * 4 + 3 + 4 + 4 + 3 * 8;
 constexpr std::uint32_t kMaxTilePixels = kMaxPayload - kTileResultFixed - 4;
+/// A voxel list: count u32, then each voxel as the LEB128 varint of its difference from the one
+/// before (the first from 0), at most 5 bytes each.
+constexpr std::uint32_t kTileMarksMax = 4 + 4 + 1 + 2 * (4 + 5 * kMaxMarkVoxels);
+static_assert(kTileMarksMax <= kMaxPayload);
 
 // Message's alternatives are in MessageType order: alternative i is type i + 1.
 template <MessageType type, class T>
@@ -44,7 +49,8 @@ static_assert(kAlternativeIs<MessageType::Challenge, Challenge> && kAlternativeI
                   kAlternativeIs<MessageType::HeartbeatAck, HeartbeatAck> &&
                   kAlternativeIs<MessageType::Error, ErrorMessage> && kAlternativeIs<MessageType::Goodbye, Goodbye> &&
                   kAlternativeIs<MessageType::ProbeRequest, ProbeRequest> &&
-                  kAlternativeIs<MessageType::ProbeData, ProbeData> && kAlternativeIs<MessageType::FrameEnd, FrameEnd>,
+                  kAlternativeIs<MessageType::ProbeData, ProbeData> && kAlternativeIs<MessageType::FrameEnd, FrameEnd> &&
+                  kAlternativeIs<MessageType::MarkGrid, MarkGrid> && kAlternativeIs<MessageType::TileMarks, TileMarks>,
               "Message's alternatives must follow MessageType's numbers");
 
 constexpr std::uint16_t kFirstType = 1;
@@ -55,6 +61,7 @@ constexpr const char* kTypeNames[] = {
     "Challenge",    "Hello",      "Auth",          "Welcome",      "SceneOffer", "SceneRequest",
     "SceneChunk",   "SceneReady", "FrameSettings", "TileAssign",   "TileResult", "Heartbeat",
     "HeartbeatAck", "Error",      "Goodbye",       "ProbeRequest", "ProbeData",  "FrameEnd",
+    "MarkGrid",     "TileMarks",
 };
 static_assert(std::size(kTypeNames) == kLastType);
 
@@ -78,6 +85,8 @@ constexpr std::uint32_t kMaxPayloads[] = {
     4,                                           // ProbeRequest
     prefixed(kMaxProbe),                         // ProbeData
     4,                                           // FrameEnd
+    6 * 8 + 3 * 4,                               // MarkGrid: lo, hi, dims
+    kTileMarksMax,                               // TileMarks: sequence, tile, shaded, 2 voxel lists
 };
 static_assert(std::size(kMaxPayloads) == kLastType);
 static_assert(kTileResultFixed + 4 + kMaxTilePixels == kMaxPayload);
@@ -210,6 +219,35 @@ void put(ByteWriter& w, const ProbeRequest& m) { w.u32(m.bytes); }
 void put(ByteWriter& w, const ProbeData& m) { put_blob(w, m.bytes, kMaxProbe, "ProbeData.bytes over 16 MiB"); }
 // sequence u32
 void put(ByteWriter& w, const FrameEnd& m) { w.u32(m.sequence); }
+// lo f64[3] | hi f64[3] | dims u32[3]
+void put(ByteWriter& w, const MarkGrid& m) {
+  for (const double v : m.lo) w.f64(v);
+  for (const double v : m.hi) w.f64(v);
+  for (const std::uint32_t v : m.dims) w.u32(v);
+}
+void put_voxels(ByteWriter& w, const std::vector<std::uint32_t>& voxels) {
+  RTC_CHECK(voxels.size() <= kMaxMarkVoxels, "TileMarks list over kMaxMarkVoxels");
+  w.u32(static_cast<std::uint32_t>(voxels.size()));
+  std::uint32_t last = 0;
+  for (const std::uint32_t v : voxels) {
+    RTC_CHECK(v >= last, "TileMarks voxels must ascend");
+    std::uint32_t d = v - last;
+    last = v;
+    while (d >= 0x80) {
+      w.u8(static_cast<std::uint8_t>(d | 0x80));
+      d >>= 7;
+    }
+    w.u8(static_cast<std::uint8_t>(d));
+  }
+}
+// sequence u32 | tile u32 | shaded u8 | path voxels | shadow voxels
+void put(ByteWriter& w, const TileMarks& m) {
+  w.u32(m.sequence);
+  w.u32(m.tile);
+  put_bool(w, m.shaded);
+  put_voxels(w, m.path);
+  put_voxels(w, m.shadow);
+}
 
 // ---- Decoding: the reader fails stickily; validation below adds what a field must satisfy. ----
 
@@ -321,6 +359,49 @@ void get(ByteReader& r, ProbeRequest& m) {
 }
 void get(ByteReader& r, ProbeData& m) { m.bytes = get_blob(r, kMaxProbe, "bytes"); }
 void get(ByteReader& r, FrameEnd& m) { m.sequence = r.u32("sequence"); }
+void get(ByteReader& r, MarkGrid& m) {
+  for (double& v : m.lo) v = r.f64("lo");
+  for (double& v : m.hi) v = r.f64("hi");
+  for (std::uint32_t& v : m.dims) v = r.u32("dims");
+}
+std::vector<std::uint32_t> get_voxels(ByteReader& r, const char* what) {
+  std::vector<std::uint32_t> out;
+  const std::uint32_t n = r.u32(what);
+  if (!r.ok()) return out;
+  if (n > kMaxMarkVoxels || n > r.remaining()) {
+    r.fail(what, "count " + std::to_string(n) + " is over the limit or the bytes left");
+    return out;
+  }
+  out.reserve(n);
+  std::uint64_t value = 0;
+  for (std::uint32_t i = 0; i < n && r.ok(); ++i) {
+    std::uint64_t d = 0;
+    for (int shift = 0;; shift += 7) {
+      const std::uint8_t b = r.u8(what);
+      if (!r.ok()) return out;
+      if (shift > 28) {
+        r.fail(what, "varint longer than 5 bytes");
+        return out;
+      }
+      d |= static_cast<std::uint64_t>(b & 0x7f) << shift;
+      if ((b & 0x80) == 0) break;
+    }
+    value += d;
+    if (value > 0xffffffffu) {
+      r.fail(what, "voxel index over 32 bits");
+      return out;
+    }
+    out.push_back(static_cast<std::uint32_t>(value));
+  }
+  return out;
+}
+void get(ByteReader& r, TileMarks& m) {
+  m.sequence = r.u32("sequence");
+  m.tile = r.u32("tile");
+  m.shaded = get_bool(r, "shaded");
+  m.path = get_voxels(r, "path");
+  m.shadow = get_voxels(r, "shadow");
+}
 
 // What a field must satisfy beyond its bytes; "" when the message is valid.
 template <class T>
@@ -338,6 +419,27 @@ std::string validate_size(std::uint32_t width, std::uint32_t height) {
   return {};
 }
 std::string validate(const TileAssign& m) { return validate_size(m.width, m.height); }
+std::string validate(const MarkGrid& m) {
+  const bool off = m.dims[0] == 0 && m.dims[1] == 0 && m.dims[2] == 0;
+  std::uint64_t voxels = 1;
+  for (int k = 0; k < 3; ++k) {
+    if (off) break;
+    if (m.dims[k] == 0) return "dims[" + std::to_string(k) + "] is 0";
+    voxels *= m.dims[k];
+    if (voxels > kMaxMarkVoxels) return "more than " + std::to_string(kMaxMarkVoxels) + " voxels";
+    if (!std::isfinite(m.lo[k]) || !std::isfinite(m.hi[k]) || !(m.lo[k] < m.hi[k]))
+      return "bounds on axis " + std::to_string(k) + " are not a finite interval";
+  }
+  return {};
+}
+std::string validate(const TileMarks& m) {
+  for (const auto* list : {&m.path, &m.shadow}) {
+    for (std::size_t i = 1; i < list->size(); ++i) {
+      if ((*list)[i] <= (*list)[i - 1]) return "voxels do not ascend";
+    }
+  }
+  return {};
+}
 std::string validate(const TileResult& m) { return validate_size(m.width, m.height); }
 std::string validate(const SceneChunk& m) {
   if (m.offset > std::numeric_limits<std::uint64_t>::max() - m.bytes.size())

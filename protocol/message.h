@@ -52,6 +52,8 @@ enum class MessageType : std::uint16_t {
   ProbeRequest = 16,  ///< master -> worker: send me this many bytes (link measurement)
   ProbeData = 17,     ///< worker -> master
   FrameEnd = 18,      ///< master -> worker: the frame is complete, drop its state
+  MarkGrid = 19,      ///< master -> worker: record temporal-coherence marks on this grid
+  TileMarks = 20,     ///< worker -> master, right before a TileResult: the voxels its rays crossed
 };
 
 struct Challenge {
@@ -153,9 +155,28 @@ struct FrameEnd {
   std::uint32_t sequence = 0;
 };
 
+/// Largest voxel count of a mark grid and of each list in TileMarks.
+inline constexpr std::uint32_t kMaxMarkVoxels = 1u << 21;
+
+/// Object-space temporal coherence (common/render/temporal.h): from now on the worker records,
+/// for every tile, which voxels of this grid its rays crossed and sends them in a TileMarks
+/// before the tile's TileResult. A grid with dims 0 stops the recording.
+struct MarkGrid {
+  double lo[3] = {0, 0, 0};
+  double hi[3] = {0, 0, 0};
+  std::uint32_t dims[3] = {0, 0, 0};
+};
+struct TileMarks {
+  std::uint32_t sequence = 0;
+  std::uint32_t tile = 0;
+  bool shaded = false;                ///< some hit was shaded with the lights
+  std::vector<std::uint32_t> path;    ///< voxels crossed by primary and reflection rays, ascending
+  std::vector<std::uint32_t> shadow;  ///< voxels crossed by shadow rays, ascending
+};
+
 using Message = std::variant<Challenge, Hello, Auth, Welcome, SceneOffer, SceneRequest, SceneChunk, SceneReady,
                              FrameSettings, TileAssign, TileResult, Heartbeat, HeartbeatAck, ErrorMessage, Goodbye,
-                             ProbeRequest, ProbeData, FrameEnd>;
+                             ProbeRequest, ProbeData, FrameEnd, MarkGrid, TileMarks>;
 
 [[nodiscard]] MessageType type_of(const Message& m);
 /// "TileResult", or "unknown type 99".

@@ -21,6 +21,8 @@
 #include "common/base/timer.h"
 #include "common/image/image.h"
 #include "common/render/renderer.h"
+#include "common/render/temporal_cli.h"
+#include "common/render/temporal_render.h"
 #include "common/scene/load.h"
 #include "common/scene/scene_cli.h"
 
@@ -32,7 +34,8 @@ int run(int argc, char** argv) {
   std::string frames_text;
   std::string out_pattern;
   int threads = 0, tile = 32;
-  std::string isa_text, log_level = "info", kd_clip = "auto";
+  std::string isa_text, log_level = "info", kd_clip = "auto", temporal_text = "auto";
+  int mark_cells = rtc::kDefaultMarkCells;
   bool exr_float = false, single_rays = false, no_depth = false, no_normal = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
@@ -43,6 +46,7 @@ int run(int argc, char** argv) {
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
   rtc::add_kd_clip_option(app, kd_clip);
+  rtc::add_temporal_options(app, temporal_text, mark_cells);
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
@@ -98,25 +102,61 @@ int run(int argc, char** argv) {
   write_options.write_depth = !no_depth;
   write_options.write_normal = !no_normal;
   const bool tty = isatty(STDERR_FILENO) != 0;
+  std::unique_ptr<rtc::TemporalFrames> temporal;
+  if (rtc::temporal_for(renderer.scene(), rtc::parse_temporal_mode(temporal_text)) && multiple) {
+    temporal = std::make_unique<rtc::TemporalFrames>(renderer, tile, mark_cells);
+    const rtc::MarkGrid& g = temporal->grid();
+    if (g.empty()) {
+      spdlog::info("temporal coherence on: no mesh moves (frames differ only where lights move)");
+    } else {
+      spdlog::info("temporal coherence on: {}x{}x{} voxels over [{:.4g} {:.4g} {:.4g}]-[{:.4g} {:.4g} {:.4g}], where meshes "
+                   "move", g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z);
+    }
+  }
+  double last_full_ms = 0;
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
     const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(f);
     const double prepare_ms = frame_timer.elapsed_ms();
+    const double cpu_before = rtc::process_cpu_ms();
     const auto pixels = static_cast<std::uint64_t>(state->width) * static_cast<std::uint64_t>(state->height);
     rtc::ProgressBar progress(pixels, "frame " + std::to_string(f), "px");
     rtc::TileRayCounts counts;
-    const rtc::Image image = renderer.render_frame(*state, tile, tty ? &progress : nullptr, &counts);
+    rtc::Image full_image;
+    const rtc::Image* image = &full_image;
+    rtc::TemporalFrames::Report report;
+    if (temporal) {
+      image = &temporal->render(*state, &report, tty ? &progress : nullptr);
+      counts = report.counts;
+    } else {
+      full_image = renderer.render_frame(*state, tile, tty ? &progress : nullptr, &counts);
+    }
     progress.finish();
     const double render_ms = frame_timer.elapsed_ms() - prepare_ms;
+    const double render_cpu_ms = rtc::process_cpu_ms() - cpu_before;
+    std::string temporal_note;
+    if (temporal) {
+      const rtc::TemporalPlan& p = report.plan;
+      if (p.full) {
+        last_full_ms = render_ms;
+        temporal_note = fmt::format(" | all {} tiles traced ({})", report.tiles, p.why);
+      } else {
+        temporal_note = fmt::format(" | {}/{} tiles retraced ({}; {} voxels changed)", p.dirty_count, report.tiles,
+                                    p.why, p.changed_voxels);
+        if (last_full_ms > 0) {
+          temporal_note += fmt::format(", {:.1f}x faster than the last full frame", last_full_ms / std::max(render_ms, 1e-3));
+        }
+      }
+    }
     const std::string path = rtc::expand_frame_pattern(out_pattern, f, multiple);
-    rtc::write_image(path, image, write_options);
+    rtc::write_image(path, *image, write_options);
     const double seconds = std::max(render_ms, 1e-3) / 1000.0;
-    std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms, render %.0f ms, %.2f M rays/s "
-                "(%llu primary, %llu shadow, %llu reflection)\n",
+    std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms, render %.0f ms (cpu %.0f ms), %.2f M rays/s "
+                "(%llu primary, %llu shadow, %llu reflection)%s\n",
                 f, path.c_str(), state->width, state->height, frame_timer.elapsed_ms() / 1000.0, prepare_ms,
-                render_ms, static_cast<double>(counts.total()) / seconds / 1e6,
+                render_ms, render_cpu_ms, static_cast<double>(counts.total()) / seconds / 1e6,
                 static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
-                static_cast<unsigned long long>(counts.reflection));
+                static_cast<unsigned long long>(counts.reflection), temporal_note.c_str());
     std::fflush(stdout);
   }
   return 0;

@@ -26,6 +26,7 @@
 #include "common/base/version.h"
 #include "common/image/pixel_format.h"
 #include "common/render/renderer.h"
+#include "common/render/temporal.h"
 #include "common/scene/serialize.h"
 #include "protocol/auth.h"
 #include "protocol/message.h"
@@ -148,6 +149,7 @@ struct TileJob {
   std::shared_ptr<SceneSlot> scene;
   proto::TileAssign tile;
   proto::FrameSettings settings;
+  std::shared_ptr<const MarkGrid> marks;  ///< record temporal-coherence marks on it (MarkGrid message)
 };
 
 /// Render threads: each takes one tile at a time, traces it, encodes the pixels and hands the
@@ -190,6 +192,8 @@ class RenderPool {
   void loop() {
     Image tile;
     std::vector<std::uint8_t> pixels;
+    std::unique_ptr<MarkRecorder> recorder;
+    std::shared_ptr<const MarkGrid> recorder_grid;
     for (;;) {
       TileJob job;
       {
@@ -204,9 +208,14 @@ class RenderPool {
         const std::shared_ptr<const FrameState> state = job.scene->frame(job.tile.frame);
         Timer timer;
         TileRayCounts counts;
+        if (job.marks && job.marks != recorder_grid) {
+          recorder = std::make_unique<MarkRecorder>(*job.marks);
+          recorder_grid = job.marks;
+        }
+        MarkRecorder* marks = job.marks ? recorder.get() : nullptr;
         job.scene->renderer().render_tile(*state, static_cast<int>(job.tile.x), static_cast<int>(job.tile.y),
                                           static_cast<int>(job.tile.width), static_cast<int>(job.tile.height), tile,
-                                          &counts);
+                                          &counts, marks);
         const double render_ms = timer.elapsed_ms();
         proto::TileResult r;
         r.sequence = job.tile.sequence;
@@ -228,7 +237,21 @@ class RenderPool {
         r.primary_rays = counts.primary;
         r.shadow_rays = counts.shadow;
         r.reflection_rays = counts.reflection;
-        deliver_(job.session, proto::encode(r));
+        std::vector<std::uint8_t> message;
+        if (marks != nullptr) {
+          // The voxels its rays crossed travel just before the tile (protocol.md, TileMarks).
+          TileMarks tm;
+          marks->take(tm);
+          proto::TileMarks pm;
+          pm.sequence = job.tile.sequence;
+          pm.tile = job.tile.tile;
+          pm.shaded = tm.shaded;
+          pm.path = std::move(tm.path);
+          pm.shadow = std::move(tm.shadow);
+          proto::encode_to(pm, message);
+        }
+        proto::encode_to(r, message);
+        deliver_(job.session, std::move(message));
       } catch (const std::exception& e) {
         fail_(job.session, std::string("rendering tile ") + std::to_string(job.tile.tile) + " of frame " +
                                std::to_string(job.tile.frame) + ": " + e.what());
@@ -364,6 +387,7 @@ class WorkerClient {
     tiles_outstanding_ = 0;
     probes_this_session_ = 0;
     settings_.clear();
+    mark_grid_.reset();
     scene_buffer_.clear();
     receiving_scene_ = false;
     last_heard_ = Clock::now();
@@ -579,7 +603,25 @@ class WorkerClient {
                                                           " tiles at once the master announced");
     }
     ++tiles_outstanding_;
-    pool_.push(TileJob{session_, scene_, m, it->second});
+    pool_.push(TileJob{session_, scene_, m, it->second, mark_grid_});
+  }
+
+  void handle(proto::MarkGrid&& m) {
+    if (!scene_) return unexpected();
+    auto grid = std::make_shared<MarkGrid>();  // dims 0: no voxels, only the `shaded` flag
+    for (int k = 0; k < 3; ++k) {
+      grid->lo[k] = m.lo[k];
+      grid->hi[k] = m.hi[k];
+      grid->dims[k] = static_cast<int>(m.dims[k]);
+    }
+    try {
+      check_mark_grid(*grid, "MarkGrid from " + conn_->peer());
+    } catch (const Error& e) {
+      return fail_session(proto::ErrorCode::Protocol, e.what());
+    }
+    mark_grid_ = std::move(grid);
+    spdlog::info("temporal coherence: recording the voxels each tile's rays cross on a {}x{}x{} grid", m.dims[0],
+                 m.dims[1], m.dims[2]);
   }
 
   void handle(proto::FrameEnd&& m) { settings_.erase(m.sequence); }
@@ -641,6 +683,7 @@ class WorkerClient {
   std::uint32_t heartbeat_ms_ = 1000;
   std::uint32_t max_outstanding_ = 0;
   std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
+  std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session
   int probes_this_session_ = 0;
   Clock::time_point lost_since_, last_heard_;
   std::string current_type_;

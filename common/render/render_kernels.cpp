@@ -16,6 +16,7 @@
 #include "common/render/frame_state.h"
 #include "common/render/render_kernels.h"
 #include "common/render/shading.h"
+#include "common/render/temporal.h"
 
 RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
@@ -88,10 +89,24 @@ struct Aov {
 
 template <int N>
 void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
-                    Aov* aov, TileRayCounts& counts) {
+                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks) {
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
   RayHit hit[N];
   closest_hits<N>(fs, rays, active, hit);
+  if (marks != nullptr) {
+    // Temporal coherence: the voxels the rays crossed up to their hits (all the way on a miss).
+    glm::vec3 org[N], dir[N];
+    float t_end[N];
+    int n = 0;
+    for (int i = 0; i < N; ++i) {
+      if (!((active >> i) & 1u)) continue;
+      const RayQuery q = rays.query(i);
+      org[n] = q.org;
+      dir[n] = q.dir;
+      t_end[n++] = hit[i].prim == kNoHit ? q.t_max : hit[i].t;
+    }
+    marks->path(n, org, dir, t_end);
+  }
 
   SurfaceSample surf[N];
   glm::vec3 local[N];
@@ -117,6 +132,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
     }
   }
   if (hit_lanes == 0) return;
+  if (marks != nullptr && !fs.lights.empty()) marks->shaded();
 
   // One packet of shadow rays per light (Wald et al. 2001, section 3).
   for (const PointLight& light : fs.lights) {
@@ -133,6 +149,19 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
     }
     if (want == 0) continue;
     counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
+    if (marks != nullptr) {
+      glm::vec3 org[N], dir[N];
+      float t_end[N];
+      int n = 0;
+      for (int i = 0; i < N; ++i) {
+        if (!((want >> i) & 1u)) continue;
+        const RayQuery q = shadow.query(i);
+        org[n] = q.org;
+        dir[n] = q.dir;
+        t_end[n++] = q.t_max;
+      }
+      marks->shadow(n, org, dir, t_end);
+    }
     const unsigned blocked = occluded_lanes<N>(fs, shadow, want);
     for (int i = 0; i < N; ++i) {
       if (!((want >> i) & 1u) || ((blocked >> i) & 1u)) continue;
@@ -171,7 +200,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
     refl.set(i, RayQuery{s.point, 0.0f, r, std::numeric_limits<float>::infinity()});
   }
   if (bounce == 0) return;
-  trace_radiance<N>(fs, refl, bounce, depth + 1, next, nullptr, counts);
+  trace_radiance<N>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks);
   for (int i = 0; i < N; ++i) {
     if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
   }
@@ -179,7 +208,8 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
 
 // Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1.
 template <int N>
-void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts) {
+void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts,
+                      MarkRecorder* marks) {
   constexpr int kBlockW = packet_block_width(N);
   constexpr int kBlockH = N / kBlockW;
   const int spp = std::max(1, fs.settings.spp);
@@ -210,7 +240,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
           lanes.weight[i] = glm::vec3(1.0f);
           lanes.color[i] = glm::vec3(0.0f);
         }
-        trace_radiance<N>(fs, primary, valid, 0, lanes, s == 0 ? aov : nullptr, counts);
+        trace_radiance<N>(fs, primary, valid, 0, lanes, s == 0 ? aov : nullptr, counts, marks);
         for (int i = 0; i < N; ++i) sum[i] = sum[i] + lanes.color[i];
       }
       const float inv_spp = 1.0f / static_cast<float>(spp);
@@ -236,11 +266,12 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
 }
 
 void render_tile_entry(const FrameState& fs, int x0, int y0, int w, int h, bool packets, Image& out,
-                       TileRayCounts& counts) {
+                       TileRayCounts& counts, MarkRecorder* marks) {
+  if (marks != nullptr && marks->grid_empty() && fs.lights.empty()) marks = nullptr;  // nothing to record
   if (packets) {
-    render_tile_impl<RTC_ISA_WIDTH>(fs, x0, y0, w, h, out, counts);
+    render_tile_impl<RTC_ISA_WIDTH>(fs, x0, y0, w, h, out, counts, marks);
   } else {
-    render_tile_impl<1>(fs, x0, y0, w, h, out, counts);
+    render_tile_impl<1>(fs, x0, y0, w, h, out, counts, marks);
   }
 }
 

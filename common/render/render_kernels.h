@@ -10,6 +10,7 @@ namespace rtc {
 
 struct FrameState;
 struct Image;
+class MarkRecorder;
 
 /// Rays traced for a tile, by kind (added to, not reset).
 struct TileRayCounts {
@@ -35,11 +36,12 @@ inline void sample_offset(int s, double& sx, double& sy) {
 }
 
 /// Entry points of one ISA. `render_tile` writes pixels [x0, x0+w) x [y0, y0+h) of the
-/// frame into `out` (already w x h; depth/normal filled when present).
+/// frame into `out` (already w x h; depth/normal filled when present); `marks` (optional)
+/// records the voxels the rays cross (common/render/temporal.h).
 struct RenderKernels {
   Isa isa = Isa::Sse42;
   void (*render_tile)(const FrameState& state, int x0, int y0, int w, int h, bool packets,
-                      Image& out, TileRayCounts& counts) = nullptr;
+                      Image& out, TileRayCounts& counts, MarkRecorder* marks) = nullptr;
 };
 
 /// Kernels for `isa`; throws rtc::Error when not compiled in or not supported by this CPU.

@@ -165,7 +165,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
 }
 
 void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h, Image& out,
-                           TileRayCounts* counts) const {
+                           TileRayCounts* counts, MarkRecorder* marks) const {
   if (w <= 0 || h <= 0 || x0 < 0 || y0 < 0 || std::int64_t{x0} + w > state.width ||
       std::int64_t{y0} + h > state.height) {
     throw Error("render_tile: tile (" + std::to_string(x0) + ", " + std::to_string(y0) + ", " +
@@ -176,7 +176,7 @@ void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h
     out = Image(w, h, options_.aovs, options_.aovs);
   }
   TileRayCounts local;
-  render_kernels(isa_).render_tile(state, x0, y0, w, h, options_.packets, out, local);
+  render_kernels(isa_).render_tile(state, x0, y0, w, h, options_.packets, out, local, marks);
   if (counts != nullptr) *counts += local;
 }
 

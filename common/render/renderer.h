@@ -15,6 +15,7 @@
 namespace rtc {
 
 class ProgressBar;
+class MarkRecorder;
 
 /// How to render; none of these change a pixel except `settings` (the time/accuracy trade).
 struct RenderOptions {
@@ -38,6 +39,7 @@ class Renderer {
 
   [[nodiscard]] const Scene& scene() const { return scene_; }
   [[nodiscard]] Isa isa() const { return isa_; }
+  [[nodiscard]] const RenderOptions& options() const { return options_; }
 
   /// Evaluates the animation at `frame`, flattens the meshes to world space and builds the
   /// kd-tree; when no mesh moved since the last call, geometry and tree are reused. Calls to
@@ -47,9 +49,10 @@ class Renderer {
 
   /// Renders pixels [x0, x0 + w) x [y0, y0 + h) of the prepared frame into `out`, which is
   /// resized to w x h. Thread-safe; no allocation beyond `out`. Adds the rays traced to
-  /// `counts` when given.
+  /// `counts` when given; records the voxels its rays cross in `marks` when given (one
+  /// recorder per thread; common/render/temporal.h). Marks never change a pixel.
   void render_tile(const FrameState& state, int x0, int y0, int w, int h, Image& out,
-                   TileRayCounts* counts = nullptr) const;
+                   TileRayCounts* counts = nullptr, MarkRecorder* marks = nullptr) const;
 
   /// The whole frame in square tiles of `tile_size`, in parallel (TBB); `progress` (optional)
   /// advances by the number of pixels of each finished tile; `counts` (optional) gets the rays.

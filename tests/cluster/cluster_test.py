@@ -403,8 +403,11 @@ def case_workers(c, n):
     print(f"tiles by worker over 4 frames: {total}")
     if n > 1 and len([v for v in total.values() if v > 0]) < 2:
         fail(f"with {n} workers only {sorted(total)} got tiles: {total}")
-    if sum(total.values()) != 4 * 30:
-        fail(f"stats count {sum(total.values())} tiles, expected 4 frames x 30")
+    # With temporal coherence (on by default for a still camera) a frame hands out only the tiles
+    # its plan traces.
+    expected = sum(f["temporal"]["tiles_traced"] if "temporal" in f else 30 for f in frames)
+    if sum(total.values()) != expected:
+        fail(f"stats count {sum(total.values())} tiles, expected {expected} (4 frames of 30 tiles)")
 
 
 def case_workers_1(c):
@@ -1014,7 +1017,79 @@ def case_launch_local(c):
     print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
 
 
+# ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------
+
+TEMPORAL_SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "temporal", "scenes")
+
+
+def temporal_run(c, tag, scene_args, frames, ext, workers, master_extra=(), render_extra=()):
+    """The cluster with temporal coherence on against rtc-render tracing every frame whole: every
+    frame bit-identical; returns the per-frame stats records."""
+    ref = c.reference(f"{tag}-ref", [*scene_args, *render_extra], frames, ext, extra=("--temporal", "off"))
+    out, records, _, master, _ = c.cluster_run(tag, scene_args, frames, ext, workers=workers, threads=1,
+                                               master_extra=("--temporal", "on", *master_extra))
+    first, last = (int(x) for x in frames.split("-"))
+    c.expect_frames_equal(out, "m", ref, range(first, last + 1), ext)
+    records = sorted(records, key=lambda f: f["sequence"])
+    for f in records:
+        if "temporal" not in f:
+            fail(f"{tag}: frame {f['frame']} has no temporal figures in the stats JSON")
+    t0 = records[0]["temporal"]
+    if t0["tiles_traced"] != t0["tiles_total"]:
+        fail(f"{tag}: the first frame traced {t0['tiles_traced']} of {t0['tiles_total']} tiles")
+    if "traced " not in master.log():
+        fail(f"{tag}: the master's frame lines do not say how many tiles were traced")
+    traced = [f["temporal"]["tiles_traced"] for f in records]
+    total = records[0]["temporal"]["tiles_total"]
+    print(f"{tag}: tiles traced per frame {traced} of {total}")
+    return records
+
+
+def case_temporal_animations(c):
+    """Every test animation (tests/temporal/scenes) through 3 workers, PNG over rgba8."""
+    scenes = sorted(f for f in os.listdir(TEMPORAL_SCENES) if f.endswith(".json"))
+    if len(scenes) < 4:
+        fail(f"test animations missing from {TEMPORAL_SCENES}")
+    for name in scenes:
+        tag = name[:-5]
+        records = temporal_run(c, tag, [os.path.join(TEMPORAL_SCENES, name)], "0-9", "png", workers=3)
+        total = records[0]["temporal"]["tiles_total"]
+        if tag != "moving_light" and sum(f["temporal"]["tiles_traced"] for f in records[1:]) >= 9 * total:
+            fail(f"{tag}: every tile was traced again in every frame: nothing kept")
+
+
+def case_temporal_exr(c):
+    """Float EXR with depth and normals (the canvas keeps every channel), the built-in scene's
+    moving sphere, 2 workers, 4 frames in flight."""
+    temporal_run(c, "exr", [*SMALL, "--tile", "16"], "0-11", "exr", workers=2,
+                 master_extra=("--frames-in-flight", "4", "--exr-float"), render_extra=("--exr-float",))
+
+
+def case_temporal_worker_killed(c):
+    """A worker SIGKILLed mid-run: its tiles (and the marks they would have sent) go to the
+    others; every frame still bit-identical."""
+    scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360"]
+    ref = c.reference("kill-ref", scene, "0-9", "png", extra=("--temporal", "off"))
+    out = c.mkdir("kill")
+    stats = c.path("kill-stats.json")
+    master, addr, _ = c.start_master("kill-master", [*scene, "--out", os.path.join(out, "m_####.png"),
+                                                     "--stats-json", stats, "--min-workers", "2",
+                                                     "--temporal", "on", "--tiles-per-worker", "2"])
+    victim = c.start_worker("kill-victim", addr, 1)
+    keeper = c.start_worker("kill-keeper", addr, 1)
+    expect_log(master, r"frame 1 \[seq 1\]", "frame 1 done", timeout=60, watch=[master])
+    victim.send(signal.SIGKILL)
+    expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
+    expect_log(master, r"worker w\d+ \(kill-victim at [^)]*\) left", "the victim's loss", timeout=30, watch=[master])
+    expect_exit(master, 0, 90, "finish every frame without the killed worker")
+    expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
+    c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
+
+
 CASES = {
+    "temporal_animations": case_temporal_animations,
+    "temporal_exr": case_temporal_exr,
+    "temporal_worker_killed": case_temporal_worker_killed,
     "workers_1": case_workers_1,
     "workers_2": case_workers_2,
     "workers_4": case_workers_4,

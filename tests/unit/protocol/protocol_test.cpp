@@ -151,6 +151,20 @@ void expect_same(const Goodbye& a, const Goodbye& b) { EXPECT_EQ(a.reason, b.rea
 void expect_same(const ProbeRequest& a, const ProbeRequest& b) { EXPECT_EQ(a.bytes, b.bytes); }
 void expect_same(const ProbeData& a, const ProbeData& b) { EXPECT_EQ(a.bytes, b.bytes); }
 void expect_same(const FrameEnd& a, const FrameEnd& b) { EXPECT_EQ(a.sequence, b.sequence); }
+void expect_same(const MarkGrid& a, const MarkGrid& b) {
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(a.lo[k], b.lo[k]);
+    EXPECT_EQ(a.hi[k], b.hi[k]);
+    EXPECT_EQ(a.dims[k], b.dims[k]);
+  }
+}
+void expect_same(const TileMarks& a, const TileMarks& b) {
+  EXPECT_EQ(a.sequence, b.sequence);
+  EXPECT_EQ(a.tile, b.tile);
+  EXPECT_EQ(a.shaded, b.shaded);
+  EXPECT_EQ(a.path, b.path);
+  EXPECT_EQ(a.shadow, b.shadow);
+}
 
 void expect_same_message(const Message& a, const Message& b) {
   ASSERT_EQ(a.index(), b.index());
@@ -226,6 +240,15 @@ std::vector<Vector> vectors() {
   v.push_back({"ProbeRequest", ProbeRequest{1u << 20}, {0x00, 0x00, 0x10, 0x00}});
   v.push_back({"ProbeData", ProbeData{{9, 8, 7}}, {0x03, 0, 0, 0, 0x09, 0x08, 0x07}});
   v.push_back({"FrameEnd", FrameEnd{42}, {0x2a, 0, 0, 0}});
+  // 0.5 = 0x3fe0000000000000, 1 = 0x3ff0..., -2 = 0xc000..., 3 = 0x4008...
+  v.push_back({"MarkGrid", MarkGrid{{0.5, -2.0, 0.5}, {1.0, 3.0, 1.0}, {2, 3, 300}},
+               {0, 0, 0, 0, 0, 0, 0xe0, 0x3f, 0, 0, 0, 0, 0, 0, 0x00, 0xc0, 0, 0, 0, 0, 0, 0, 0xe0, 0x3f,
+                0, 0, 0, 0, 0, 0, 0xf0, 0x3f, 0, 0, 0, 0, 0, 0, 0x08, 0x40, 0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
+                0x02, 0, 0, 0, 0x03, 0, 0, 0, 0x2c, 0x01, 0, 0}});
+  // Voxels as varint deltas: 5, 300 (delta 295 = 0xa7 0x02), 301 (1); shadow 128 (0x80 0x01).
+  v.push_back({"TileMarks", TileMarks{7, 3, true, {5, 300, 301}, {128}},
+               {0x07, 0, 0, 0, 0x03, 0, 0, 0, 0x01, 0x03, 0, 0, 0, 0x05, 0xa7, 0x02, 0x01, 0x01, 0, 0, 0, 0x80, 0x01}});
+  v.push_back({"TileMarksEmpty", TileMarks{0, 0, false, {}, {}}, {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}});
   return v;
 }
 
@@ -337,6 +360,25 @@ TEST(MessageDecode, BackToBackMessagesDecodeInTurn) {
   EXPECT_EQ(decode(rest).status, DecodeStatus::NeedMore);
 }
 
+TEST(MessageTypes, BadMarksAreRejected) {
+  // Voxels that do not ascend, a zero dimension, a varint past 32 bits.
+  for (const Bytes& payload :
+       {Bytes{1, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 5, 0, 0, 0, 0, 0},
+        Bytes{1, 0, 0, 0, 2, 0, 0, 0, 0, 1, 0, 0, 0, 0xff, 0xff, 0xff, 0xff, 0x7f, 0, 0, 0, 0}}) {
+    Header h;
+    h.version = kVersion;
+    h.type = static_cast<std::uint16_t>(MessageType::TileMarks);
+    h.payload_length = static_cast<std::uint32_t>(payload.size());
+    h.crc = crc32(payload);
+    EXPECT_EQ(decode_payload(h, payload).status, DecodeStatus::Bad);
+  }
+  MarkGrid g{{0, 0, 0}, {1, 1, 1}, {4, 0, 4}};
+  const Bytes b = encode(g);
+  const DecodeResult r = decode_bytes(b);
+  EXPECT_EQ(r.status, DecodeStatus::Bad);
+  EXPECT_NE(r.error.find("dims[1] is 0"), std::string::npos) << r.error;
+}
+
 TEST(MessageTypes, NamesAndTypes) {
   EXPECT_EQ(type_name(11), "TileResult");
   EXPECT_EQ(type_name(14), "Error");
@@ -357,11 +399,12 @@ TEST(MessageLimits, FixedSizeTypesHaveExactLimits) {
   EXPECT_EQ(max_payload(static_cast<std::uint16_t>(MessageType::Welcome)), 12u);
   EXPECT_EQ(max_payload(static_cast<std::uint16_t>(MessageType::TileResult)), kMaxPayload);
   EXPECT_EQ(max_payload(0), 0u);
-  EXPECT_EQ(max_payload(19), 0u);
+  EXPECT_EQ(max_payload(21), 0u);
   EXPECT_EQ(max_payload(0xffff), 0u);
   for (const Message& m : {Message(Auth{}), Message(Welcome{}), Message(SceneRequest{}), Message(SceneReady{}),
                            Message(FrameSettings{}), Message(TileAssign{}), Message(Heartbeat{}),
-                           Message(HeartbeatAck{}), Message(ProbeRequest{}), Message(FrameEnd{})}) {
+                           Message(HeartbeatAck{}), Message(ProbeRequest{}), Message(FrameEnd{}),
+                           Message(MarkGrid{})}) {
     const auto type = static_cast<std::uint16_t>(type_of(m));
     EXPECT_EQ(max_payload(type), encode(m).size() - kHeaderSize) << type_name(type);
   }
@@ -429,7 +472,7 @@ TEST(MessageMalformed, VersionMismatchNamesBothVersions) {
 TEST(MessageMalformed, UnknownTypeIsBad) {
   expect_bad(frame(99, {}), "unknown message type 99");
   expect_bad(frame(0, {}), "unknown message type 0");
-  expect_bad(frame(19, {0, 0, 0, 0}), "unknown message type 19");
+  expect_bad(frame(21, {0, 0, 0, 0}), "unknown message type 21");
 }
 
 TEST(MessageMalformed, OverLongPayloadRejectedBeforeItArrives) {

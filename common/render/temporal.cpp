@@ -1,0 +1,489 @@
+// Object-space temporal coherence: the mark grid, the per-tile recorder and the tracker.
+#include "common/render/temporal.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+
+#include "common/base/error.h"
+
+namespace rtc {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+struct DBox {
+  glm::dvec3 lo{kInf};
+  glm::dvec3 hi{-kInf};
+  void extend(const glm::dvec3& p) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  void extend(const DBox& b) {
+    lo = glm::min(lo, b.lo);
+    hi = glm::max(hi, b.hi);
+  }
+  [[nodiscard]] bool empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
+};
+
+/// Object-space bounds of the vertices a mesh's triangles use.
+DBox object_bounds(const Mesh& mesh) {
+  DBox box;
+  for (const glm::uvec3& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t i = t[k];
+      if (i < mesh.positions.size()) box.extend(glm::dvec3(mesh.positions[i]));
+    }
+  }
+  return box;
+}
+
+/// Largest distance of a used vertex from the object's origin.
+double object_radius(const Mesh& mesh) {
+  double r2 = 0.0;
+  for (const glm::uvec3& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t i = t[k];
+      if (i < mesh.positions.size()) r2 = std::max(r2, glm::dot(glm::dvec3(mesh.positions[i]), glm::dvec3(mesh.positions[i])));
+    }
+  }
+  return std::sqrt(r2);
+}
+
+/// The largest factor by which `world`'s 3x3 part stretches a vector, for rotation times
+/// scale: its longest column (the rotation keeps the scaled axes orthogonal), times a hair for
+/// the float matrix's rounding.
+double stretch(const glm::mat4& world) {
+  double best = 0.0;
+  for (int c = 0; c < 3; ++c) best = std::max(best, glm::length(glm::dvec3(glm::vec3(world[c]))));
+  return best * (1.0 + 1e-6);
+}
+
+/// The box of an object-space box's 8 corners under `world` (as the renderer's flatten: the
+/// float matrix widened to double).
+DBox transformed(const glm::dvec3& lo, const glm::dvec3& hi, const glm::mat4& world) {
+  const glm::dmat4 m(world);
+  DBox box;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+    box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
+  }
+  return box;
+}
+
+/// Padding that covers float rounding of transformed vertices and of the triangle test, for
+/// coordinates as large as those of `box`, and at least a thousandth of a cell.
+double pad_for(const DBox& box, double cell) {
+  const glm::dvec3 mag = glm::max(glm::abs(box.lo), glm::abs(box.hi));
+  return 1e-5 * std::max({mag.x, mag.y, mag.z}) + 1e-3 * cell;
+}
+
+bool differs(const Transform& a, const Transform& b) { return !(a == b); }
+
+}  // namespace
+
+const char* temporal_mode_name(TemporalMode mode) {
+  switch (mode) {
+    case TemporalMode::On:
+      return "on";
+    case TemporalMode::Off:
+      return "off";
+    default:
+      return "auto";
+  }
+}
+
+TemporalMode parse_temporal_mode(const std::string& text) {
+  if (text == "auto") return TemporalMode::Auto;
+  if (text == "on") return TemporalMode::On;
+  if (text == "off") return TemporalMode::Off;
+  throw Error("temporal coherence mode must be auto, on or off, got \"" + text + "\"");
+}
+
+bool temporal_for(const Scene& scene, TemporalMode mode) {
+  if (mode != TemporalMode::Auto) return mode == TemporalMode::On;
+  const std::vector<CameraKey>& keys = scene.animation.camera;
+  for (std::size_t i = 1; i < keys.size(); ++i) {
+    if (!(keys[i].camera == keys[0].camera)) return false;
+  }
+  return true;
+}
+
+void check_mark_grid(const MarkGrid& grid, const std::string& what) {
+  if (grid.dims == glm::ivec3(0)) return;  // empty
+  for (int k = 0; k < 3; ++k) {
+    if (grid.dims[k] < 1 || grid.dims[k] > kMaxMarkCellsPerAxis) {
+      throw Error(what + ": mark grid has " + std::to_string(grid.dims[k]) + " cells on axis " + std::to_string(k) +
+                  " (1 to " + std::to_string(kMaxMarkCellsPerAxis) + " allowed)");
+    }
+    if (!std::isfinite(grid.lo[k]) || !std::isfinite(grid.hi[k]) || !(grid.lo[k] < grid.hi[k])) {
+      throw Error(what + ": mark grid bounds on axis " + std::to_string(k) + " are not a finite interval");
+    }
+  }
+  if (grid.voxel_count() > kMaxMarkVoxels) {
+    throw Error(what + ": mark grid has " + std::to_string(grid.voxel_count()) + " voxels (at most " +
+                std::to_string(kMaxMarkVoxels) + ")");
+  }
+}
+
+MarkGrid mark_grid_for(const Scene& scene, int cells) {
+  cells = std::clamp(cells, 1, kMaxMarkCellsPerAxis);
+  DBox region;
+  for (const MeshTrack& track : scene.animation.meshes) {
+    if (track.mesh >= scene.meshes.size() || track.keys.size() < 2) continue;
+    bool moves = false;
+    for (std::size_t i = 1; i < track.keys.size(); ++i) moves |= differs(track.keys[i].transform, track.keys[0].transform);
+    if (!moves) continue;
+    const DBox obj = object_bounds(scene.meshes[track.mesh]);
+    if (obj.empty()) continue;
+    const double rho = object_radius(scene.meshes[track.mesh]);
+    for (std::size_t i = 0; i + 1 < track.keys.size(); ++i) {
+      const TransformKey& a = track.keys[i];
+      const TransformKey& b = track.keys[i + 1];
+      const glm::mat4 ma = a.transform.matrix(), mb = b.transform.matrix();
+      DBox span = transformed(obj.lo, obj.hi, ma);
+      span.extend(transformed(obj.lo, obj.hi, mb));
+      if (!(a.transform.rotate == b.transform.rotate)) {
+        // Rotating between the keys: every vertex stays within rho times the largest scale of
+        // the object's origin, which moves on the segment between the keys' translations
+        // (scale is interpolated linearly, so its largest value is at a key).
+        const double r = rho * std::max(stretch(ma), stretch(mb));
+        const glm::dvec3 ta(ma[3]), tb(mb[3]);
+        span.extend(glm::min(ta, tb) - glm::dvec3(r));
+        span.extend(glm::max(ta, tb) + glm::dvec3(r));
+      }
+      // Translation and scale are linear between keys, so with the same rotation every vertex
+      // moves on a segment between its two key positions: inside the union of the key boxes.
+      region.extend(span);
+    }
+  }
+  MarkGrid grid;
+  if (region.empty()) return grid;
+  const glm::dvec3 extent = region.hi - region.lo;
+  const double longest = std::max({extent.x, extent.y, extent.z});
+  const double pad = pad_for(region, longest / cells) + 1e-9;
+  grid.lo = region.lo - glm::dvec3(pad);
+  grid.hi = region.hi + glm::dvec3(pad);
+  const glm::dvec3 size = grid.hi - grid.lo;
+  const double cell = std::max({size.x, size.y, size.z}) / cells;
+  for (int k = 0; k < 3; ++k) grid.dims[k] = std::clamp(static_cast<int>(std::ceil(size[k] / cell - 1e-9)), 1, cells);
+  return grid;
+}
+
+// ---- recorder -------------------------------------------------------------------------------
+
+MarkRecorder::MarkRecorder(const MarkGrid& grid) : grid_(grid) {
+  if (grid_.empty()) return;
+  cell_ = (grid_.hi - grid_.lo) / glm::dvec3(grid_.dims);
+  inv_cell_ = 1.0 / cell_;
+  DBox box;
+  box.extend(grid_.lo);
+  box.extend(grid_.hi);
+  pad_ = pad_for(box, std::min({cell_.x, cell_.y, cell_.z}));
+  const std::size_t words = (grid_.voxel_count() + 63) / 64;
+  bits_[0].assign(words, 0);
+  bits_[1].assign(words, 0);
+}
+
+void MarkRecorder::mark_box(int list, const glm::dvec3& lo, const glm::dvec3& hi) {
+  int a[3], b[3];
+  for (int k = 0; k < 3; ++k) {
+    const double fa = std::floor((lo[k] - pad_ - grid_.lo[k]) * inv_cell_[k]);
+    const double fb = std::floor((hi[k] + pad_ - grid_.lo[k]) * inv_cell_[k]);
+    if (fb < 0.0 || fa >= grid_.dims[k]) return;
+    a[k] = static_cast<int>(std::max(fa, 0.0));
+    b[k] = static_cast<int>(std::min(fb, static_cast<double>(grid_.dims[k] - 1)));
+  }
+  std::vector<std::uint64_t>& bits = bits_[list];
+  std::vector<std::uint32_t>& touched = touched_[list];
+  const auto nx = static_cast<std::uint32_t>(grid_.dims.x), ny = static_cast<std::uint32_t>(grid_.dims.y);
+  for (int z = a[2]; z <= b[2]; ++z) {
+    for (int y = a[1]; y <= b[1]; ++y) {
+      // Voxels row+a[0] .. row+b[0] are consecutive bits: set them a word at a time.
+      const std::uint32_t row = nx * (static_cast<std::uint32_t>(y) + ny * static_cast<std::uint32_t>(z));
+      std::uint32_t v = row + static_cast<std::uint32_t>(a[0]);
+      const std::uint32_t last = row + static_cast<std::uint32_t>(b[0]);
+      while (v <= last) {
+        const std::uint32_t w = v >> 6, first = v & 63;
+        const std::uint32_t end = std::min<std::uint32_t>(63, first + (last - v));
+        const std::uint64_t mask = (end == 63 ? ~std::uint64_t{0} : ((std::uint64_t{1} << (end + 1)) - 1)) &
+                                   ~((std::uint64_t{1} << first) - 1);
+        std::uint64_t& word = bits[w];
+        if (word == 0) touched.push_back(w);
+        word |= mask;
+        v += end - first + 1;
+      }
+    }
+  }
+}
+
+void MarkRecorder::group(int list, int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
+  if (grid_.empty()) return;
+  DBox box_a, box_b;
+  for (int i = 0; i < n; ++i) {
+    const glm::dvec3 o(org[i]), d(dir[i]);
+    if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || std::isnan(t_end[i])) continue;  // hits nothing, ever
+    double t0 = 0.0;
+    // A hit exactly where a moving mesh now starts must still count: reach a little past it.
+    double t1 = std::isfinite(t_end[i]) ? static_cast<double>(t_end[i]) * (1.0 + 1e-6) + 1e-30 : kInf;
+    bool inside = true;
+    for (int k = 0; k < 3 && inside; ++k) {
+      if (d[k] == 0.0) {
+        inside = o[k] >= grid_.lo[k] && o[k] <= grid_.hi[k];
+        continue;
+      }
+      double ta = (grid_.lo[k] - o[k]) / d[k], tb = (grid_.hi[k] - o[k]) / d[k];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+      inside = t0 <= t1;
+    }
+    if (!inside) continue;  // misses the region where anything can move
+    box_a.extend(o + d * t0);
+    box_b.extend(o + d * t1);
+  }
+  if (box_a.empty()) return;
+  // Pieces that each move about a cell (on the axis that moves most, in cells).
+  double cells = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    cells = std::max(cells, std::max(std::abs(box_b.lo[k] - box_a.lo[k]), std::abs(box_b.hi[k] - box_a.hi[k])) *
+                                inv_cell_[k]);
+  }
+  const int pieces = static_cast<int>(std::clamp(std::ceil(cells), 1.0, 4.0 * kMaxMarkCellsPerAxis));
+  glm::dvec3 lo0 = box_a.lo, hi0 = box_a.hi;
+  for (int j = 1; j <= pieces; ++j) {
+    const double s = static_cast<double>(j) / pieces;
+    const glm::dvec3 lo1 = j == pieces ? box_b.lo : box_a.lo + (box_b.lo - box_a.lo) * s;
+    const glm::dvec3 hi1 = j == pieces ? box_b.hi : box_a.hi + (box_b.hi - box_a.hi) * s;
+    mark_box(list, glm::min(lo0, lo1), glm::max(hi0, hi1));
+    lo0 = lo1;
+    hi0 = hi1;
+  }
+}
+
+void MarkRecorder::take(TileMarks& out) {
+  for (int list = 0; list < 2; ++list) {
+    std::vector<std::uint32_t>& dst = list == 0 ? out.path : out.shadow;
+    dst.clear();
+    std::vector<std::uint32_t>& touched = touched_[list];
+    std::sort(touched.begin(), touched.end());
+    for (const std::uint32_t w : touched) {
+      std::uint64_t bits = bits_[list][w];
+      bits_[list][w] = 0;
+      while (bits != 0) {
+        dst.push_back(w * 64u + static_cast<std::uint32_t>(std::countr_zero(bits)));
+        bits &= bits - 1;
+      }
+    }
+    touched.clear();
+  }
+  out.shaded = shaded_;
+  shaded_ = false;
+}
+
+// ---- tracker --------------------------------------------------------------------------------
+
+TemporalTracker::TemporalTracker(const Scene& scene, MarkGrid grid, std::uint32_t tiles)
+    : scene_(&scene), grid_(grid), tiles_(tiles), words_((tiles + 63) / 64), records_(tiles) {
+  check_mark_grid(grid_, "temporal coherence");
+  voxel_tiles_[0].resize(grid_.voxel_count());
+  voxel_tiles_[1].resize(grid_.voxel_count());
+  mesh_lo_.resize(scene.meshes.size());
+  mesh_hi_.resize(scene.meshes.size());
+  mesh_radius_.resize(scene.meshes.size());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    const DBox b = object_bounds(scene.meshes[m]);
+    mesh_lo_[m] = b.lo;
+    mesh_hi_[m] = b.hi;
+    mesh_radius_[m] = object_radius(scene.meshes[m]);
+  }
+}
+
+void TemporalTracker::clear_marks(std::uint32_t tile) {
+  TileRecord& r = records_[tile];
+  const std::uint64_t mask = ~(std::uint64_t{1} << (tile & 63));
+  for (int list = 0; list < 2; ++list) {
+    for (const std::uint32_t v : list == 0 ? r.marks.path : r.marks.shadow) {
+      std::vector<std::uint64_t>& t = voxel_tiles_[list][v];
+      if (!t.empty()) t[tile >> 6] &= mask;
+    }
+  }
+  r.marks = TileMarks{};
+  r.known = false;
+}
+
+void TemporalTracker::set_marks(std::uint32_t tile, const TileMarks& marks) {
+  TileRecord& r = records_[tile];
+  const std::uint32_t voxels = grid_.voxel_count();
+  for (int list = 0; list < 2; ++list) {
+    for (const std::uint32_t v : list == 0 ? marks.path : marks.shadow) {
+      if (v >= voxels) return;  // not this grid's: leave the tile unknown (traced again)
+    }
+  }
+  r.marks = marks;
+  for (int list = 0; list < 2; ++list) {
+    for (const std::uint32_t v : list == 0 ? r.marks.path : r.marks.shadow) {
+      std::vector<std::uint64_t>& t = voxel_tiles_[list][v];
+      if (t.empty()) t.assign(words_, 0);
+      t[tile >> 6] |= std::uint64_t{1} << (tile & 63);
+    }
+  }
+  r.known = true;
+}
+
+bool TemporalTracker::must_trace(const TileRecord& r, const PlanData& d) const {
+  if (d.full || !r.known) return true;
+  if (d.lights_moved && r.marks.shaded) return true;
+  for (const auto* list : {&r.marks.path, &r.marks.shadow}) {
+    for (const std::uint32_t v : *list) {
+      if ((d.changed[v >> 6] >> (v & 63)) & 1u) return true;
+    }
+  }
+  return false;
+}
+
+std::vector<TemporalDecision> TemporalTracker::done(std::uint32_t tile, std::uint64_t id, const TileMarks* marks) {
+  std::vector<TemporalDecision> decisions;
+  if (tile >= tiles_ || records_[tile].out != id || id == 0) return decisions;  // not out for this plan
+  TileRecord& r = records_[tile];
+  r.out = 0;
+  clear_marks(tile);
+  if (marks != nullptr) set_marks(tile, *marks);
+  std::size_t i = 0;
+  for (; i < r.waiting.size(); ++i) {
+    const std::uint64_t p = r.waiting[i];
+    const auto it = plans_.find(p);
+    const bool trace = it == plans_.end() || must_trace(r, it->second);
+    decisions.push_back(TemporalDecision{p, tile, trace});
+    if (it != plans_.end() && --it->second.waiting == 0) plans_.erase(it);
+    if (trace) {
+      r.out = p;
+      ++i;
+      break;
+    }
+  }
+  r.waiting.erase(r.waiting.begin(), r.waiting.begin() + static_cast<std::ptrdiff_t>(i));
+  return decisions;
+}
+
+bool TemporalTracker::mark_mesh(std::size_t mesh, const glm::mat4& world, std::vector<std::uint64_t>& changed) const {
+  if (mesh >= mesh_lo_.size() || mesh_lo_[mesh].x > mesh_hi_[mesh].x) return true;  // no triangles
+  if (grid_.empty()) return false;
+  // The transformed object box, cut down to the sphere the vertices stay in (a rotated box's
+  // box can be much larger than the mesh).
+  DBox box = transformed(mesh_lo_[mesh], mesh_hi_[mesh], world);
+  const double r = mesh_radius_[mesh] * stretch(world);
+  const glm::dvec3 origin{glm::vec3(world[3])};
+  box.lo = glm::max(box.lo, origin - glm::dvec3(r));
+  box.hi = glm::min(box.hi, origin + glm::dvec3(r));
+  const glm::dvec3 cell = (grid_.hi - grid_.lo) / glm::dvec3(grid_.dims);
+  const double pad = pad_for(box, std::min({cell.x, cell.y, cell.z}));
+  int lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    if (box.lo[k] < grid_.lo[k] || box.hi[k] > grid_.hi[k]) return false;
+    lo[k] = std::clamp(static_cast<int>(std::floor((box.lo[k] - pad - grid_.lo[k]) / cell[k])), 0, grid_.dims[k] - 1);
+    hi[k] = std::clamp(static_cast<int>(std::floor((box.hi[k] + pad - grid_.lo[k]) / cell[k])), 0, grid_.dims[k] - 1);
+  }
+  for (int z = lo[2]; z <= hi[2]; ++z) {
+    for (int y = lo[1]; y <= hi[1]; ++y) {
+      for (int x = lo[0]; x <= hi[0]; ++x) {
+        const auto v = static_cast<std::uint32_t>(x + grid_.dims.x * (y + grid_.dims.y * z));
+        changed[v >> 6] |= std::uint64_t{1} << (v & 63);
+      }
+    }
+  }
+  return true;
+}
+
+TemporalPlan TemporalTracker::plan(int frame) {
+  TemporalPlan p;
+  p.id = next_plan_++;
+  p.dirty.assign(tiles_, TemporalPlan::kKeep);
+  const FramePose pose = pose_at(*scene_, frame);
+  PlanData data;
+  data.changed.assign((grid_.voxel_count() + 63) / 64, 0);
+  std::uint32_t meshes_moved = 0, lights_moved = 0;
+  if (!have_last_) {
+    data.full = true;
+    p.why = "first frame";
+  } else if (!(pose.camera == last_.camera)) {
+    data.full = true;
+    p.why = "camera moved: every tile traced";
+  } else {
+    for (std::size_t m = 0; m < pose.world_from_object.size() && m < last_.world_from_object.size(); ++m) {
+      if (pose.world_from_object[m] == last_.world_from_object[m]) continue;
+      ++meshes_moved;
+      if (!mark_mesh(m, last_.world_from_object[m], data.changed) || !mark_mesh(m, pose.world_from_object[m], data.changed)) {
+        data.full = true;
+        p.why = "mesh " + std::to_string(m) + " moved outside the mark grid: every tile traced";
+        break;
+      }
+    }
+    for (std::size_t l = 0; l < pose.lights.size() && l < last_.lights.size(); ++l) {
+      lights_moved += pose.lights[l] == last_.lights[l] ? 0 : 1;
+    }
+    data.lights_moved = lights_moved > 0;
+    if (!data.full) {
+      p.why = std::to_string(meshes_moved) + (meshes_moved == 1 ? " mesh" : " meshes") + " and " +
+              std::to_string(lights_moved) + (lights_moved == 1 ? " light" : " lights") + " moved";
+    }
+  }
+  p.full = data.full;
+  // Tiles whose rays crossed a changed voxel, from the bit tables (path and shadow apart).
+  std::vector<std::uint64_t> dirty_path(words_, 0), dirty_shadow(words_, 0);
+  if (!data.full) {
+    for (std::size_t w = 0; w < data.changed.size(); ++w) {
+      std::uint64_t bits = data.changed[w];
+      while (bits != 0) {
+        const std::size_t v = w * 64 + static_cast<std::size_t>(std::countr_zero(bits));
+        bits &= bits - 1;
+        ++p.changed_voxels;
+        for (int list = 0; list < 2; ++list) {
+          const std::vector<std::uint64_t>& t = voxel_tiles_[list][v];
+          std::vector<std::uint64_t>& dst = list == 0 ? dirty_path : dirty_shadow;
+          for (std::size_t i = 0; i < t.size(); ++i) dst[i] |= t[i];
+        }
+      }
+    }
+  }
+  for (std::uint32_t tile = 0; tile < tiles_; ++tile) {
+    TileRecord& r = records_[tile];
+    if (r.out != 0 || !r.waiting.empty()) {
+      p.dirty[tile] = TemporalPlan::kWait;
+      r.waiting.push_back(p.id);
+      ++data.waiting;
+      ++p.waiting;
+      continue;
+    }
+    const std::uint64_t bit = std::uint64_t{1} << (tile & 63);
+    bool trace = data.full;
+    if (!r.known) {
+      ++p.unknown;
+      trace = true;
+    }
+    if (dirty_path[tile >> 6] & bit) {
+      ++p.by_path;
+      trace = true;
+    }
+    if (dirty_shadow[tile >> 6] & bit) {
+      ++p.by_shadow;
+      trace = true;
+    }
+    if (data.lights_moved && r.marks.shaded) {
+      ++p.by_light;
+      trace = true;
+    }
+    if (trace) {
+      p.dirty[tile] = TemporalPlan::kTrace;
+      r.out = p.id;
+      ++p.dirty_count;
+    }
+  }
+  if (data.waiting > 0) plans_.emplace(p.id, std::move(data));
+  last_ = pose;
+  have_last_ = true;
+  return p;
+}
+
+}  // namespace rtc
