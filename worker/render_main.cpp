@@ -141,8 +141,8 @@ int run(int argc, char** argv) {
         last_full_ms = render_ms;
         temporal_note = fmt::format(" | all {} tiles traced ({})", report.tiles, p.why);
       } else {
-        temporal_note = fmt::format(" | {}/{} tiles retraced ({}; {} voxels changed)", p.dirty_count, report.tiles,
-                                    p.why, p.changed_voxels);
+        temporal_note = fmt::format(" | {}/{} tiles retraced ({}; {} voxels changed; crossed by rays {}, by shadow rays {})",
+                                    p.dirty_count, report.tiles, p.why, p.changed_voxels, p.by_path, p.by_shadow);
         if (last_full_ms > 0) {
           temporal_note += fmt::format(", {:.1f}x faster than the last full frame", last_full_ms / std::max(render_ms, 1e-3));
         }

@@ -85,6 +85,43 @@ TEST(MarkRecorder, MarksEveryVoxelItsSegmentsCross) {
   }
 }
 
+TEST(MarkRecorder, MarksEveryVoxelItsShadowSegmentsCross) {
+  MarkGrid g;
+  g.lo = glm::dvec3(-1.0, -2.0, 0.5);
+  g.hi = glm::dvec3(3.0, 1.0, 2.5);
+  g.dims = glm::ivec3(16, 12, 8);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> pos(-4.0f, 5.0f);
+  MarkRecorder rec(g);
+  for (int trial = 0; trial < 3000; ++trial) {
+    // Surface points (clustered or scattered) towards one light, as a shadow packet is.
+    const int n = 1 + trial % 16;
+    const glm::vec3 light(pos(rng), pos(rng), pos(rng));
+    const glm::vec3 centre(pos(rng), pos(rng), pos(rng));
+    glm::vec3 org[16], dir[16];
+    float t_end[16];
+    for (int i = 0; i < n; ++i) {
+      org[i] = trial % 2 ? centre + 0.1f * glm::vec3(pos(rng), pos(rng), pos(rng)) : glm::vec3(pos(rng), pos(rng), pos(rng));
+      dir[i] = light - org[i];
+      t_end[i] = 1.0f;
+    }
+    rec.shadow(n, org, dir, t_end);
+    TileMarks m;
+    rec.take(m);
+    ASSERT_TRUE(m.path.empty());
+    for (int i = 0; i < n; ++i) {
+      for (int s = 0; s <= 4000; ++s) {
+        const double t = s / 4000.0;
+        const glm::dvec3 p = glm::dvec3(org[i]) + t * glm::dvec3(dir[i]);
+        if (!inside(g, p)) continue;
+        const std::uint32_t v = voxel_of(g, p);
+        ASSERT_TRUE(std::binary_search(m.shadow.begin(), m.shadow.end(), v))
+            << "trial " << trial << " shadow ray " << i << " t " << t << " crosses voxel " << v << " unmarked";
+      }
+    }
+  }
+}
+
 TEST(MarkGrid, CoversEveryPoseOfTheMovingMeshes) {
   const Scene scene = default_scene();
   const MarkGrid g = mark_grid_for(scene);

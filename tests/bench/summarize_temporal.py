@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Temporal-coherence benchmark (tests/bench/run_temporal.sh): parses rtc-render's frame lines
+and the master's stats JSON into JSON lines, and turns them into the Markdown table of
+tests/bench/results/temporal.md."""
+import json
+import re
+import statistics
+import sys
+
+FRAME = re.compile(r"^frame (\d+): wrote .* prepare (\d+) ms, render (\d+) ms \(cpu (\d+) ms\)")
+RETRACED = re.compile(r"\| (\d+)/(\d+) tiles retraced")
+ALL = re.compile(r"\| all (\d+) tiles traced")
+
+
+def parse(name, mode, run):
+    for line in sys.stdin:
+        m = FRAME.match(line)
+        if not m:
+            continue
+        rec = {"kind": "render", "scene": name, "mode": mode, "run": int(run), "frame": int(m.group(1)),
+               "prepare_ms": int(m.group(2)), "render_ms": int(m.group(3)), "cpu_ms": int(m.group(4))}
+        r = RETRACED.search(line)
+        a = ALL.search(line)
+        if r:
+            rec["traced"], rec["tiles"] = int(r.group(1)), int(r.group(2))
+        elif a:
+            rec["traced"] = rec["tiles"] = int(a.group(1))
+        print(json.dumps(rec))
+
+
+def cluster(name, mode, stats):
+    frames = []
+    with open(stats) as f:
+        for line in f:
+            j = json.loads(line)
+            if j.get("type") == "frame":
+                frames.append(j)
+    for j in sorted(frames, key=lambda x: x["sequence"]):
+        t = j.get("temporal", {})
+        print(json.dumps({"kind": "cluster", "scene": name, "mode": mode, "frame": j["frame"],
+                          "wire_bytes": j["wire_bytes"], "mark_bytes": t.get("mark_bytes", 0),
+                          "render_ms": j["render_ms"], "traced": t.get("tiles_traced"),
+                          "tiles": t.get("tiles_total")}))
+
+
+def table(path):
+    recs = [json.loads(l) for l in open(path) if l.strip()]
+    scenes = []
+    for r in recs:
+        if r["scene"] not in scenes:
+            scenes.append(r["scene"])
+
+    def med(xs):
+        return statistics.median(xs) if xs else float("nan")
+
+    print("# Temporal coherence (issue 7): incremental frames against full re-renders\n")
+    print("Regenerate with `tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12). Per frame: "
+          "time = prepare (kd-tree) + render wall ms of `rtc-render`, median over the runs; `--temporal off` traces "
+          "every frame whole, `--temporal on` traces frame 0 whole while recording marks, then only the tiles the "
+          "tracker finds dirty. Speed-up = sum over frames 1..N of full time / incremental time. First-frame "
+          "overhead = incremental frame 0 / full frame 0 (render CPU time, the marking cost). Wire: bytes per frame "
+          "the master received (tiles + marks) with 2 workers, frames 1..N.\n")
+    print("| animation | frames | tiles | traced per frame (mean, min-max) | full ms/frame | incremental ms/frame | "
+          "speed-up | render only | first-frame overhead | wire KB/frame full | incremental | of which marks | saved |")
+    print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for s in scenes:
+        by = {}
+        for r in recs:
+            if r["scene"] == s and r["kind"] == "render":
+                by.setdefault((r["mode"], r["frame"]), []).append(r)
+        frames = sorted({f for (_, f) in by})
+        if not frames:
+            continue
+
+        def t(mode, f, key):
+            return med([x[key] for x in by.get((mode, f), [])])
+
+        later = frames[1:]
+        full = sum(t("off", f, "prepare_ms") + t("off", f, "render_ms") for f in later)
+        inc = sum(t("on", f, "prepare_ms") + t("on", f, "render_ms") for f in later)
+        full_r = sum(t("off", f, "render_ms") for f in later)
+        inc_r = sum(t("on", f, "render_ms") for f in later)
+        over = t("on", frames[0], "cpu_ms") / max(t("off", frames[0], "cpu_ms"), 1e-9)
+        traced = [by[("on", f)][0].get("traced", 0) for f in later if ("on", f) in by]
+        tiles = by[("on", frames[0])][0].get("tiles", 0) if ("on", frames[0]) in by else 0
+        cl = [r for r in recs if r["scene"] == s and r["kind"] == "cluster"]
+
+        def wire(mode, key="wire_bytes"):
+            xs = [r[key] for r in cl if r["mode"] == mode and r["frame"] != frames[0]]
+            return sum(xs) / len(xs) / 1024 if xs else float("nan")
+
+        wf, wi, wm = wire("off"), wire("on"), wire("on", "mark_bytes")
+        n = len(later)
+        print(f"| {s} | {len(frames)} | {tiles} | {statistics.mean(traced):.0f} ({min(traced)}-{max(traced)}) | "
+              f"{full / n:.0f} | {inc / n:.0f} | **{full / max(inc, 1e-9):.2f}x** | {full_r / max(inc_r, 1e-9):.2f}x | "
+              f"{100 * (over - 1):+.0f}% | {wf:.0f} | {wi:.0f} | {wm:.1f} | {100 * (1 - wi / wf):.0f}% |")
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "--parse":
+        parse(*sys.argv[2:5])
+    elif sys.argv[1] == "--cluster":
+        cluster(*sys.argv[2:5])
+    else:
+        table(sys.argv[2])
