@@ -233,6 +233,28 @@ case_bad_isa() {
   [[ ! -e $work/o.png ]] || fail "an image was written with a bad --isa"
 }
 
+case_temporal() {
+  # Temporal coherence (on by default for the built-in scene's still camera): the log says how
+  # many tiles each frame traced, and every frame equals a full render bit for bit.
+  run inc "$render" --frames 0-5 --width 96 --height 72 --tile 16 --out "$work/i_####.png"
+  expect_rc inc 0
+  expect_in inc out "all 30 tiles traced (first frame)"
+  expect_in inc out "tiles retraced (1 mesh and 0 lights moved"
+  run full "$render" --frames 0-5 --width 96 --height 72 --tile 16 --temporal off --out "$work/f_####.png"
+  expect_rc full 0
+  if grep -qF "tiles retraced" "$work/full.out"; then
+    show full >&2
+    fail "--temporal off still retraced tiles"
+  fi
+  for n in 0000 0001 0002 0003 0004 0005; do
+    cmp -s "$work/i_$n.png" "$work/f_$n.png" || fail "frame $n differs between --temporal on and off"
+  done
+  run bad "$render" --temporal maybe --frames 0-1 --width 8 --height 8 --out "$work/b_####.png"
+  [[ $rc -ne 0 ]] || fail "--temporal maybe was accepted"
+  expect_in bad err "--temporal"
+  [[ -z $(find "$work" -name 'b_*') ]] || fail "frames were written with a bad --temporal"
+}
+
 case_bench_json_dump() {
   [[ -n $bench ]] || fail "no rtc-bench given"
   write_small_scene
