@@ -93,13 +93,14 @@ struct KdBuildOptions {
   /// faster tracing on long thin triangles (spd-rings), up to +40% on some other scenes, within
   /// noise on the small ones, for builds 1.0-5.3x slower (tests/bench/results/kd_clip.md).
   /// Off: clamped boxes (faster builds). The renderer turns it off for
-  /// trees rebuilt every frame (scenes whose meshes move) unless told otherwise (KdClip).
+  /// trees rebuilt as frames go by (those of meshes that move) unless told otherwise (KdClip).
   bool clip = true;
 };
 
-/// Whether the renderer's trees clip straddling triangles (KdBuildOptions::clip). Auto: on
-/// when the scene's meshes never move (one tree serves every frame), off when they do (a tree
-/// per frame, where build time counts as much as trace time).
+/// Whether the renderer's trees clip straddling triangles (KdBuildOptions::clip). Auto: on for
+/// a tree built once (over the meshes that never move, which serves every frame), off for the
+/// trees rebuilt as frames go by (one per moving mesh), where build time counts as much as
+/// trace time. On and Off: every tree.
 enum class KdClip : std::uint8_t { Auto, On, Off };
 
 /// "auto", "on", "off" (the CLI spelling); parse_kd_clip throws rtc::Error naming the value.
