@@ -43,6 +43,13 @@ inline constexpr int kNextAxis[5] = {1, 2, 0, 1, 2};
 /// of a triangle's plane.
 inline constexpr float kPopSlack = 0x1p-16f;
 
+/// The farthest a segment may start and still hold a hit that can replace one at `t_hit`:
+/// t_hit plus kPopSlack of its magnitude.
+template <int N>
+inline vfloat<N> hit_reach(const vfloat<N>& t_hit) {
+  return t_hit + max(t_hit, -t_hit) * vfloat<N>(kPopSlack);
+}
+
 /// Lanes whose distance t a test may report: any t in (t_min, t_max) for occlusion; for the
 /// closest hit, t in (t_min, hit.t), or t == hit.t with a higher triangle id. Ties in t
 /// (coplanar overlapping triangles, shared edges) go to the higher id: any fixed rule makes the
@@ -272,6 +279,15 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   inv_dir[2] = vfloat<N>(1.0f) / ray.dir[2];
 
   vfloat<N> near = ray.t_min, far = ray.t_max;
+  if constexpr (!kOcclusion) {
+    // A lane may come in with a hit from another tree (Renderer's static and moving trees are
+    // traced in turn): nothing here beyond that hit's reach can replace it, so the segment ends
+    // there, by the rule that skips a stacked subtree below. The ray's t_max stays as it is,
+    // since accepted_t's tie rule needs t < t_max: a triangle at exactly the hit's t with a
+    // higher id still wins, as it would in one tree over both sets. A lane without a hit
+    // (prim -1, t = t_max) keeps its segment.
+    far = select(hit.prim > vint<N>(-1), min(far, hit_reach(hit.t)), far);
+  }
   for (int axis = 0; axis < 3; ++axis) {
     sign[axis] = sign_bit(ray.dir[axis]).lane(lead) ? 1 : 0;
     const float entry = sign[axis] ? box.hi[axis] : box.lo[axis];
@@ -377,8 +393,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       if constexpr (kOcclusion) {
         lanes = e.mask & ~bits(done);
       } else {
-        const vfloat<N> reach_t = hit.t + max(hit.t, -hit.t) * vfloat<N>(kPopSlack);
-        lanes = e.mask & bits(vfloat<N>::load(e.near) <= reach_t);
+        lanes = e.mask & bits(vfloat<N>::load(e.near) <= hit_reach(hit.t));
       }
       if (lanes != 0) {
         active = vbool<N>::from_bits(lanes);
@@ -483,8 +498,11 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
   }
 }
 
-/// Closest hits; hit must come in with t = t_max and prim = -1 for the active lanes. The
-/// triangle test follows the tree's records (KdTree::watertight()).
+/// Closest hits; hit must come in with t = t_max and prim = -1 for the active lanes, or with a
+/// hit found for the same ray in another tree (ids of one numbering, KdTree::build's `ids`):
+/// then a triangle replaces it only when closer, or at the same t with a higher id, so trees
+/// traced in turn give the bits of one tree over all their triangles. The triangle test
+/// follows the tree's records (KdTree::watertight()).
 template <int N>
 inline void intersect(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit) {
   vbool<N> unused(false);

@@ -42,7 +42,7 @@ struct alignas(16) TriAccel {
   float n_u = 0, n_v = 0, n_d = 0;
   std::uint32_t k = 3;  ///< 3 marks a degenerate triangle that never hits
   float b_nu = 0, b_nv = 0, b_d = 0;
-  std::uint32_t id = 0;  ///< the triangle's index in the arrays given to KdTree::build
+  std::uint32_t id = 0;  ///< the triangle's id: its index in the arrays given to KdTree::build, or ids[index]
   float c_nu = 0, c_nv = 0, c_d = 0;
   std::uint32_t pad1 = 0;
 };
@@ -58,7 +58,7 @@ struct alignas(16) TriVerts {
   float ax, ay, az;
   std::uint32_t k;  ///< 3 marks a degenerate triangle (never in the tree); 0 otherwise
   float bx, by, bz;
-  std::uint32_t id;  ///< the triangle's index in the arrays given to KdTree::build
+  std::uint32_t id;  ///< as TriAccel::id
   float cx, cy, cz;
   std::uint32_t pad1;
 };
@@ -93,13 +93,14 @@ struct KdBuildOptions {
   /// faster tracing on long thin triangles (spd-rings), up to +40% on some other scenes, within
   /// noise on the small ones, for builds 1.0-5.3x slower (tests/bench/results/kd_clip.md).
   /// Off: clamped boxes (faster builds). The renderer turns it off for
-  /// trees rebuilt every frame (scenes whose meshes move) unless told otherwise (KdClip).
+  /// trees rebuilt as frames go by (those of meshes that move) unless told otherwise (KdClip).
   bool clip = true;
 };
 
-/// Whether the renderer's trees clip straddling triangles (KdBuildOptions::clip). Auto: on
-/// when the scene's meshes never move (one tree serves every frame), off when they do (a tree
-/// per frame, where build time counts as much as trace time).
+/// Whether the renderer's trees clip straddling triangles (KdBuildOptions::clip). Auto: on for
+/// a tree built once (over the meshes that never move, which serves every frame), off for the
+/// trees rebuilt as frames go by (one per moving mesh), where build time counts as much as
+/// trace time. On and Off: every tree.
 enum class KdClip : std::uint8_t { Auto, On, Off };
 
 /// "auto", "on", "off" (the CLI spelling); parse_kd_clip throws rtc::Error naming the value.
@@ -121,8 +122,9 @@ struct KdBuildStats {
   [[nodiscard]] std::string to_string() const;
 };
 
-/// An immutable kd-tree. Triangle ids are indices into the arrays given to build(). Thread-safe
-/// for concurrent queries after construction.
+/// An immutable kd-tree. Triangle ids (what hits report, and what ties are broken by) are the
+/// indices into the arrays given to build(), or the `ids` given with them. Thread-safe for
+/// concurrent queries after construction.
 class KdTree {
  public:
   KdTree() = default;
@@ -130,8 +132,12 @@ class KdTree {
   /// Builds over triangles (indices into positions). O(N log N): events sorted once per axis,
   /// then each node's sorted lists are split in linear time. Parallel over subtrees with TBB.
   /// The tree is a pure function of the input and options (not of the thread count).
+  /// `ids`: empty, or one id per triangle, below 2^31 - 1 (hits carry them as int32, -1 for a
+  /// miss): a tree over some of a scene's triangles then reports the scene's triangle ids, so
+  /// that several trees traced in turn break ties as one tree over all of them would. Positions
+  /// that no triangle references are not read.
   static KdTree build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
-                      const KdBuildOptions& options = {});
+                      const KdBuildOptions& options = {}, std::span<const std::uint32_t> ids = {});
 
   [[nodiscard]] const std::vector<KdNode>& nodes() const { return nodes_; }
   /// Leaf references: indices into records() (not triangle ids; TriAccel::id gives those).
@@ -140,10 +146,11 @@ class KdTree {
   /// a leaf's triangles sit together in memory; unreferenced (degenerate) ones come last.
   /// `wald` or `watertight` as watertight() says; `wald.k` and `wald.id` are valid in both.
   [[nodiscard]] const std::vector<TriRecord>& records() const { return records_; }
-  /// The record of triangle `id`.
-  [[nodiscard]] const TriRecord& record_of(std::uint32_t id) const { return records_[accel_index_[id]]; }
-  /// Triangle `id`'s record as Wald's: all of it when !watertight(), else only `k` and `id`.
-  [[nodiscard]] const TriAccel& tri_accel_of(std::uint32_t id) const { return record_of(id).wald; }
+  /// The record of triangles[index] as given to build(); `index` is the triangle's id when the
+  /// tree was built without ids.
+  [[nodiscard]] const TriRecord& record_of(std::uint32_t index) const { return records_[accel_index_[index]]; }
+  /// triangles[index]'s record as Wald's: all of it when !watertight(), else only `k` and `id`.
+  [[nodiscard]] const TriAccel& tri_accel_of(std::uint32_t index) const { return record_of(index).wald; }
   /// Whether the records are Woop's watertight ones (KdBuildOptions::watertight).
   [[nodiscard]] bool watertight() const { return watertight_; }
   /// Scene bounds, slightly enlarged so rays that graze the outermost triangles still enter.

@@ -1057,9 +1057,10 @@ void order_records_by_leaves(const std::vector<KdNode>& nodes, std::vector<std::
 }  // namespace
 
 KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
-                     const KdBuildOptions& options) {
+                     const KdBuildOptions& options, std::span<const std::uint32_t> ids) {
   Timer timer;
   if (triangles.size() >= (1u << 30)) throw Error("kd-tree: more than 2^30 triangles");
+  RTC_CHECK(ids.empty() || ids.size() == triangles.size(), "kd-tree: ids must be empty or one per triangle");
   std::unique_ptr<tbb::global_control> limit;
   if (options.threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -1076,14 +1077,16 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
       const glm::uvec3 t = triangles[i];
       RTC_CHECK(t.x < positions.size() && t.y < positions.size() && t.z < positions.size(),
                 "kd-tree: triangle index out of range (loaders validate indices)");
+      const std::uint32_t id = ids.empty() ? static_cast<std::uint32_t>(i) : ids[i];
+      RTC_CHECK(id < 0x7FFFFFFFu, "kd-tree: triangle id must be below 2^31 - 1 (hits carry it as int32)");
       const glm::vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
       TriRecord& rec = tree.records_[i];
       if (options.watertight) {
         rec.watertight = make_tri_verts(a, b, c);
-        rec.watertight.id = static_cast<std::uint32_t>(i);
+        rec.watertight.id = id;
       } else {
         rec.wald = make_tri_accel(a, b, c);
-        rec.wald.id = static_cast<std::uint32_t>(i);
+        rec.wald.id = id;
       }
       if (rec.wald.k < 3) {  // valid in either format (TriRecord)
         tri_box[i].extend(a);

@@ -1,4 +1,4 @@
-// One frame of a scene, ready to trace: world-space geometry and kd-tree (shared between frames
+// One frame of a scene, ready to trace: world-space geometry and kd-trees (shared between frames
 // whose meshes did not move), camera, lights, materials, settings.
 #pragma once
 
@@ -11,14 +11,15 @@
 
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
+#include "common/base/error.h"
 #include "common/math/camera.h"
 #include "common/scene/scene.h"
 
 namespace rtc {
 
-/// World-space triangles of one pose of the meshes, and their kd-tree. Immutable; shared by
+/// World-space triangles of one pose of the meshes, and their kd-trees. Immutable; shared by
 /// every frame in which no mesh moved. Shading data (normals, materials) are kept apart from
-/// the 48-byte triangle records in the tree and touched only for hits.
+/// the 48-byte triangle records in the trees and touched only for hits.
 struct FrameGeometry {
   std::vector<glm::vec3> positions;        ///< world space
   std::vector<glm::vec3> normals;          ///< world space, one per position (zero when none)
@@ -26,7 +27,21 @@ struct FrameGeometry {
   std::vector<std::uint32_t> material_ids; ///< per triangle, valid indices into the materials
   std::vector<std::uint8_t> smooth;        ///< per triangle: 1 = interpolate vertex normals
   std::vector<std::uint32_t> source_index; ///< per triangle: id in input-file order (all meshes)
-  KdTree tree;
+  /// At least one. Renderer::prepare: trees[0] over the meshes that never move (built once and
+  /// shared by every frame; possibly empty), then one per moving mesh in mesh order (shared
+  /// with the previous frame when that mesh did not move). build_frame_state, or a renderer
+  /// with RenderOptions::split_static_trees off: one tree over everything. Every tree reports
+  /// the triangle's index in the arrays above as its id, whichever tree holds it; a ray goes
+  /// through all of them (closest hit: the nearest, equal t to the higher id).
+  std::vector<std::shared_ptr<const KdTree>> trees;
+
+  /// The tree when there is exactly one (static scenes, build_frame_state); RTC_CHECK fails
+  /// otherwise. For tools and tests that trace a tree directly.
+  [[nodiscard]] const KdTree& single_tree() const {
+    RTC_CHECK(trees.size() == 1 && trees[0] != nullptr,
+              "FrameGeometry::single_tree: the geometry has several trees (or none)");
+    return *trees[0];
+  }
 };
 
 /// Another tracer to route every ray through, keeping rtc's shading: rtc-bench uses it to time

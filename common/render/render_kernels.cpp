@@ -31,7 +31,7 @@ struct Lanes {
   glm::vec3 color[N];   // radiance accumulated, already weighted
 };
 
-/// Closest hits of the lanes in `lanes_mask`, from rtc's kd-tree or the external tracer.
+/// Closest hits of the lanes in `lanes_mask`, from rtc's kd-trees or the external tracer.
 template <int N>
 void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, RayHit (&out)[N]) {
   if (fs.tracer != nullptr) {
@@ -50,7 +50,12 @@ void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_
   }
   const RayPacket<N> p = rays.packet();
   HitPacket<N> hit{p.t_max, vfloat<N>(0.0f), vfloat<N>(0.0f), vint<N>(-1)};
-  intersect<N>(fs.geometry->tree, p, vbool<N>::from_bits(lanes_mask), hit);
+  // The static meshes' tree first (most hits are there), then each moving mesh's: every tree
+  // starts from the hits found so far, which end its lanes' segments, and replaces one only
+  // with a nearer triangle or one at the same t with a higher id, so the result is the bits of
+  // one tree over all triangles (kd_traverse.h, intersect).
+  const vbool<N> active = vbool<N>::from_bits(lanes_mask);
+  for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) intersect<N>(*tree, p, active, hit);
   float t[N], beta[N], gamma[N];
   std::int32_t prim[N];
   hit.t.store(t);
@@ -78,7 +83,15 @@ unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned 
     }
     return out;
   }
-  return bits(occluded<N>(fs.geometry->tree, rays.packet(), vbool<N>::from_bits(lanes_mask)));
+  // Any tree's hit occludes: a lane leaves the query once one tree has blocked it.
+  const RayPacket<N> p = rays.packet();
+  unsigned blocked = 0;
+  for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) {
+    const unsigned open = lanes_mask & ~blocked;
+    if (open == 0) break;
+    blocked |= bits(occluded<N>(*tree, p, vbool<N>::from_bits(open)));
+  }
+  return blocked;
 }
 
 /// First-hit data the image keeps besides colour (sample 0 only).

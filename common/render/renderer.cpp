@@ -1,7 +1,10 @@
-// Renderer: per-frame world-space state, kd-tree reuse, tile dispatch to the per-ISA kernels.
+// Renderer: per-frame world-space state, kd-trees (one built once over the static meshes, one
+// per moving mesh rebuilt when it moves), tile dispatch to the per-ISA kernels.
 #include "common/render/renderer.h"
 
 #include <algorithm>
+#include <cstddef>
+#include <span>
 #include <string>
 
 #include <spdlog/spdlog.h>
@@ -10,6 +13,7 @@
 
 #include "common/base/error.h"
 #include "common/base/progress.h"
+#include "common/base/timer.h"
 #include "common/render/render_kernels.h"
 
 namespace rtc {
@@ -53,8 +57,28 @@ const RenderKernels& render_kernels(Isa isa) {
 
 namespace {
 
-// World-space geometry of all meshes at one pose. Transforms are applied in double and
-// rounded once, so an identity placement reproduces the file's coordinates exactly.
+// World-space positions and normals of one mesh placed by `world_from_object`, written from
+// g.positions[v_base] on. Transforms are applied in double and rounded once, so an identity
+// placement reproduces the file's coordinates exactly and a placement gives the same bits
+// whenever it is applied.
+void place_mesh(const Mesh& m, const glm::mat4& world_from_object, std::size_t v_base, FrameGeometry& g) {
+  const glm::dmat4 world(world_from_object);
+  const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
+  const bool identity = world == glm::dmat4(1.0);
+  const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
+  for (std::size_t i = 0; i < m.positions.size(); ++i) {
+    g.positions[v_base + i] =
+        identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
+    if (has_normals) {
+      const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
+      const double len = glm::length(n);
+      g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+    }
+  }
+}
+
+// World-space geometry of all meshes at one pose, in mesh order: triangle i of the arrays is
+// the triangle id every tree reports.
 void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
   std::size_t vertex_count = 0, tri_count = 0;
   for (const Mesh& m : scene.meshes) {
@@ -71,19 +95,8 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
   std::uint64_t source_base = 0;
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     const Mesh& m = scene.meshes[mi];
-    const glm::dmat4 world(pose.world_from_object.at(mi));
-    const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
-    const bool identity = world == glm::dmat4(1.0);
+    place_mesh(m, pose.world_from_object.at(mi), v_base, g);
     const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
-    for (std::size_t i = 0; i < m.positions.size(); ++i) {
-      g.positions[v_base + i] =
-          identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
-      if (has_normals) {
-        const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
-        const double len = glm::length(n);
-        g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
-      }
-    }
     for (std::size_t t = 0; t < m.triangles.size(); ++t) {
       g.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
       const std::uint32_t mat = t < m.material_ids.size() ? m.material_ids[t] : 0u;
@@ -98,22 +111,31 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
   }
 }
 
-}  // namespace
-
-bool kd_clip_for(const Scene& scene, KdClip clip) {
-  if (clip != KdClip::Auto) return clip == KdClip::On;
-  for (const MeshTrack& track : scene.animation.meshes) {
-    if (track.keys.size() > 1) return false;  // a tree per frame
+// The same as flatten() at `pose`, given `previous`, the geometry of an earlier pose of the
+// same scene, and the placement it was flattened at: the pose-independent arrays and the
+// vertices of meshes that did not move are copied (the same bits), the others placed again.
+void reflatten(const Scene& scene, const FramePose& pose, const FrameGeometry& previous,
+               const std::vector<glm::mat4>& previous_world_from_object, FrameGeometry& g) {
+  g.positions = previous.positions;
+  g.normals = previous.normals;
+  g.triangles = previous.triangles;
+  g.material_ids = previous.material_ids;
+  g.smooth = previous.smooth;
+  g.source_index = previous.source_index;
+  std::size_t v_base = 0;
+  for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    if (pose.world_from_object.at(mi) != previous_world_from_object.at(mi)) {
+      place_mesh(scene.meshes[mi], pose.world_from_object[mi], v_base, g);
+    }
+    v_base += scene.meshes[mi].positions.size();
   }
-  return true;
 }
 
-std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
-                                              const KdBuildOptions& kd) {
+// Everything of a frame but its geometry.
+std::shared_ptr<FrameState> frame_state_at(const Scene& scene, const FramePose& pose, const RenderSettings& settings) {
   check_render_settings(settings);
   auto fs = std::make_shared<FrameState>();
-  const FramePose pose = pose_at(scene, frame);
-  fs->frame = frame;
+  fs->frame = pose.frame;
   fs->width = scene.width;
   fs->height = scene.height;
   fs->camera = pose.camera;
@@ -124,11 +146,40 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   fs->background = scene.background;
   fs->ambient = scene.ambient;
   fs->settings = settings;
+  return fs;
+}
+
+// A tree over g.triangles[first, first + count), reporting their indices there as ids.
+std::shared_ptr<const KdTree> build_range_tree(const FrameGeometry& g, std::size_t first, std::size_t count,
+                                               const KdBuildOptions& options) {
+  std::vector<std::uint32_t> ids(count);
+  for (std::size_t i = 0; i < count; ++i) ids[i] = static_cast<std::uint32_t>(first + i);
+  return std::make_shared<const KdTree>(
+      KdTree::build(g.positions, std::span<const glm::uvec3>(g.triangles).subspan(first, count), options, ids));
+}
+
+}  // namespace
+
+bool kd_clip_for(KdClip clip, bool rebuilt_per_frame) {
+  if (clip != KdClip::Auto) return clip == KdClip::On;
+  return !rebuilt_per_frame;
+}
+
+bool kd_clip_for(const Scene& scene, KdClip clip) {
+  const std::vector<bool> moving = moving_meshes(scene);
+  return kd_clip_for(clip, std::find(moving.begin(), moving.end(), true) != moving.end());
+}
+
+std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
+                                              const KdBuildOptions& kd) {
+  const FramePose pose = pose_at(scene, frame);
+  auto fs = frame_state_at(scene, pose, settings);
   auto geometry = std::make_shared<FrameGeometry>();
   flatten(scene, pose, *geometry);
   KdBuildOptions tree_options = kd;
   tree_options.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
-  geometry->tree = KdTree::build(geometry->positions, geometry->triangles, tree_options);
+  geometry->trees.push_back(
+      std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, tree_options)));
   fs->geometry = std::move(geometry);
   return fs;
 }
@@ -138,12 +189,13 @@ Renderer::Renderer(Scene scene, RenderOptions options)
   (void)render_kernels(isa_);  // fail now, not in the first tile
   check_render_settings(options_.settings.value_or(scene_.settings));
   (void)CameraRays(scene_.camera, scene_.width, scene_.height);
+  moving_ = moving_meshes(scene_);
 }
 
 std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
   if (last_ && last_->frame == frame) return last_;
   const FramePose pose = pose_at(scene_, frame);
-  // Share the geometry and tree when no mesh moved: camera-only and light-only animations
+  // Share the geometry and trees when no mesh moved: camera-only and light-only animations
   // then cost no rebuild and no copy.
   if (last_ && last_world_from_object_ == pose.world_from_object) {
     auto fs = std::make_shared<FrameState>(*last_);  // shares last_->geometry
@@ -152,13 +204,83 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
     fs->lights = pose.lights;
     last_ = std::move(fs);
+    spdlog::debug("frame {}: no mesh moved, geometry and kd-trees reused", frame);
     return last_;
   }
-  KdBuildOptions kd = options_.kd;
-  kd.clip = kd_clip_for(scene_, options_.kd_clip);
-  auto fs = build_frame_state(scene_, frame, options_.settings.value_or(scene_.settings), kd);
+  const RenderSettings settings = options_.settings.value_or(scene_.settings);
+  auto fs = frame_state_at(scene_, pose, settings);
   fs->tracer = options_.tracer;
-  spdlog::debug("frame {}: {}", frame, fs->geometry->tree.stats().to_string());
+  Timer flatten_timer;
+  auto geometry = std::make_shared<FrameGeometry>();
+  if (last_) {
+    reflatten(scene_, pose, *last_->geometry, last_world_from_object_, *geometry);
+  } else {
+    flatten(scene_, pose, *geometry);
+  }
+  const double flatten_ms = flatten_timer.elapsed_ms();
+
+  KdBuildOptions kd = options_.kd;
+  kd.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
+  Timer build_timer;
+  int built = 0;
+  if (!options_.split_static_trees) {
+    kd.clip = kd_clip_for(scene_, options_.kd_clip);
+    geometry->trees.push_back(
+        std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, kd)));
+    ++built;
+    spdlog::debug("frame {}: one tree over all meshes: {}", frame, geometry->trees[0]->stats().to_string());
+  } else {
+    // The trees' ids number all triangles: the limit of one tree over all of them applies.
+    if (geometry->triangles.size() >= (1u << 30)) throw Error("kd-tree: more than 2^30 triangles");
+    const FrameGeometry& g = *geometry;
+    if (!static_tree_) {
+      // The static meshes' triangles, placed as at every frame (moving_meshes), with their ids.
+      std::vector<glm::uvec3> triangles;
+      std::vector<std::uint32_t> ids;
+      std::size_t t_base = 0;
+      for (std::size_t mi = 0; mi < scene_.meshes.size(); ++mi) {
+        const std::size_t count = scene_.meshes[mi].triangles.size();
+        if (!moving_[mi]) {
+          triangles.insert(triangles.end(), g.triangles.begin() + static_cast<std::ptrdiff_t>(t_base),
+                           g.triangles.begin() + static_cast<std::ptrdiff_t>(t_base + count));
+          for (std::size_t t = 0; t < count; ++t) ids.push_back(static_cast<std::uint32_t>(t_base + t));
+        }
+        t_base += count;
+      }
+      KdBuildOptions static_kd = kd;
+      static_kd.clip = kd_clip_for(options_.kd_clip, false);
+      static_tree_ = std::make_shared<const KdTree>(KdTree::build(g.positions, triangles, static_kd, ids));
+      static_world_from_object_ = pose.world_from_object;
+      ++built;
+      spdlog::debug("frame {}: static meshes' tree: {}", frame, static_tree_->stats().to_string());
+    }
+    for (std::size_t mi = 0; mi < scene_.meshes.size(); ++mi) {
+      RTC_CHECK(moving_[mi] || pose.world_from_object[mi] == static_world_from_object_[mi],
+                "Renderer: a mesh that moving_meshes() calls static moved");
+    }
+    geometry->trees.push_back(static_tree_);
+    KdBuildOptions moving_kd = kd;
+    moving_kd.clip = kd_clip_for(options_.kd_clip, true);
+    std::size_t t_base = 0, moving_index = 0;
+    for (std::size_t mi = 0; mi < scene_.meshes.size(); ++mi) {
+      const std::size_t count = scene_.meshes[mi].triangles.size();
+      if (moving_[mi]) {
+        ++moving_index;  // this mesh's tree is trees[moving_index], in every frame
+        if (last_ && pose.world_from_object[mi] == last_world_from_object_[mi]) {
+          geometry->trees.push_back(last_->geometry->trees.at(moving_index));
+        } else {
+          geometry->trees.push_back(build_range_tree(g, t_base, count, moving_kd));
+          ++built;
+          spdlog::debug("frame {}: mesh {} ({}) tree: {}", frame, mi, scene_.meshes[mi].name,
+                        geometry->trees.back()->stats().to_string());
+        }
+      }
+      t_base += count;
+    }
+  }
+  spdlog::debug("frame {}: flattened in {:.1f} ms; built {} of {} kd-trees in {:.1f} ms", frame, flatten_ms, built,
+                geometry->trees.size(), build_timer.elapsed_ms());
+  fs->geometry = std::move(geometry);
   last_ = std::move(fs);
   last_world_from_object_ = pose.world_from_object;
   return last_;

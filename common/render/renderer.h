@@ -24,6 +24,11 @@ struct RenderOptions {
   bool packets = true;                     ///< false: the single-ray (N = 1) kernels
   KdBuildOptions kd;  ///< `kd.clip` is decided by `kd_clip` below
   KdClip kd_clip = KdClip::Auto;
+  /// One kd-tree over the meshes that never move (built once, shared by every frame) and one
+  /// per moving mesh (rebuilt only for frames where that mesh moved); false: one tree over all
+  /// meshes, rebuilt whenever any of them moves. The same pixels either way (tests compare
+  /// them); false is for those tests and for timing the difference.
+  bool split_static_trees = true;
   bool aovs = true;                        ///< fill Image::depth and Image::normal
   /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must
   /// outlive the renderer.
@@ -42,9 +47,12 @@ class Renderer {
   [[nodiscard]] const RenderOptions& options() const { return options_; }
 
   /// Evaluates the animation at `frame`, flattens the meshes to world space and builds the
-  /// kd-tree; when no mesh moved since the last call, geometry and tree are reused. Calls to
-  /// prepare() must not overlap each other, but may overlap render_tile() on states returned
-  /// earlier (a worker prepares the next frame while its threads trace the current one).
+  /// kd-trees (FrameGeometry::trees): the static meshes' tree on the first call only, a moving
+  /// mesh's tree only when that mesh moved since the last call (see
+  /// RenderOptions::split_static_trees). When no mesh moved since the last call, geometry and
+  /// trees are reused as they are. Logs the trees built and their build times at debug level.
+  /// Calls to prepare() must not overlap each other, but may overlap render_tile() on states
+  /// returned earlier (a worker prepares the next frame while its threads trace the current one).
   std::shared_ptr<const FrameState> prepare(int frame);
 
   /// Renders pixels [x0, x0 + w) x [y0, y0 + h) of the prepared frame into `out`, which is
@@ -65,14 +73,24 @@ class Renderer {
   Isa isa_;
   std::shared_ptr<const FrameState> last_;
   std::vector<glm::mat4> last_world_from_object_;  ///< the mesh placement last_ was built for
+  std::vector<bool> moving_;                       ///< per mesh: moving_meshes(scene_)
+  std::shared_ptr<const KdTree> static_tree_;      ///< split_static_trees: built by the first prepare()
+  std::vector<glm::mat4> static_world_from_object_;  ///< the placement static_tree_ was built at
 };
 
-/// KdBuildOptions::clip for `scene` under `clip` (Auto: on unless a mesh track has more than
-/// one key, i.e. unless the tree is rebuilt as frames go by).
+/// KdBuildOptions::clip under `clip` for a tree built once (`rebuilt_per_frame` false: Auto
+/// means on) or rebuilt as frames go by (true: Auto means off, since the build then costs as
+/// much as the tracing it speeds up). On and Off apply to every tree.
+[[nodiscard]] bool kd_clip_for(KdClip clip, bool rebuilt_per_frame);
+
+/// KdBuildOptions::clip under `clip` for one tree over all of `scene`'s meshes, which is rebuilt
+/// per frame when a mesh moves (moving_meshes): what build_frame_state's callers and a renderer
+/// without RenderOptions::split_static_trees use.
 [[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
 
-/// Builds the world-space state of `frame` (no reuse). Exposed for tools and tests. The tree uses
-/// `kd`, except that `settings.intersector` decides KdBuildOptions::watertight.
+/// Builds the world-space state of `frame` (no reuse) with one tree over all meshes. Exposed
+/// for tools and tests. The tree uses `kd`, except that `settings.intersector` decides
+/// KdBuildOptions::watertight.
 [[nodiscard]] std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame,
                                                             const RenderSettings& settings,
                                                             const KdBuildOptions& kd);

@@ -154,8 +154,10 @@ FramePose pose_at(const Scene& scene, int frame) {
     bracket(track.keys, frame, i0, i1, t);
     const Transform& a = track.keys[i0].transform;
     const Transform& b = track.keys[i1].transform;
-    if (i0 == i1) {
-      pose.world_from_object[track.mesh] = a.matrix();  // on or outside a key: that key, exactly
+    if (i0 == i1 || a == b) {
+      // On or outside a key, or between equal keys: that key, exactly (interpolating equal
+      // keys may round differently from frame to frame, and a held mesh must not move).
+      pose.world_from_object[track.mesh] = a.matrix();
       continue;
     }
     const glm::dquat rotation = slerp_shortest(glm::normalize(to_double(a.rotate)),
@@ -174,6 +176,17 @@ FramePose pose_at(const Scene& scene, int frame) {
         glm::vec3(mix3(track.keys[i0].position, track.keys[i1].position, t));
   }
   return pose;
+}
+
+std::vector<bool> moving_meshes(const Scene& scene) {
+  std::vector<bool> moving(scene.meshes.size(), false);
+  for (const MeshTrack& track : scene.animation.meshes) {
+    if (track.mesh >= scene.meshes.size() || track.keys.empty()) continue;
+    for (const TransformKey& key : track.keys) {
+      if (!(key.transform == track.keys.front().transform)) moving[track.mesh] = true;
+    }
+  }
+  return moving;
 }
 
 }  // namespace rtc

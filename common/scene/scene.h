@@ -181,6 +181,11 @@ struct FramePose {
 /// by slerp_shortest: the same bits on every CPU).
 [[nodiscard]] FramePose pose_at(const Scene& scene, int frame);
 
+/// Per mesh: whether its world transform may differ between frames, i.e. whether a track for
+/// it has keys whose transforms are not all equal. pose_at gives a mesh for which this is false
+/// the same world_from_object (bit for bit) at every frame.
+[[nodiscard]] std::vector<bool> moving_meshes(const Scene& scene);
+
 /// Spherical linear interpolation between unit quaternions a (t = 0) and b (t = 1) along the
 /// shorter arc (b is negated when dot(a, b) < 0), normalised lerp when they are within 1e-6
 /// radians. Agrees with glm::slerp to 1e-9 (glm's acos(dot) loses digits at small angles; this

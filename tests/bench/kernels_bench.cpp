@@ -99,7 +99,7 @@ const Fixture& fixture() {
     out.kernels = &rtc::trace_kernels();
     out.primary = primary_rays(*out.state);
     std::vector<rtc::RayHit> hits(out.primary.rays.size());
-    out.kernels->intersect(out.state->geometry->tree, out.primary.rays.data(), hits.data(), hits.size(), true);
+    out.kernels->intersect(out.state->geometry->single_tree(), out.primary.rays.data(), hits.data(), hits.size(), true);
     out.shadow = shadow_rays(*out.state, out.primary, hits);
     return out;
   }();
@@ -123,7 +123,7 @@ void BM_KdTreeBuild(benchmark::State& state) {
     benchmark::DoNotOptimize(tree.nodes().data());
   }
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(g.triangles.size()));
-  state.counters["nodes"] = static_cast<double>(g.tree.stats().nodes);
+  state.counters["nodes"] = static_cast<double>(g.single_tree().stats().nodes);
 }
 BENCHMARK(BM_KdTreeBuild)->ArgName("threads")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -146,7 +146,7 @@ void BM_ClosestHit(benchmark::State& state, bool packets) {
   add_context(state, f, packets);
   std::vector<rtc::RayHit> hits(f.primary.rays.size());
   for (auto _ : state) {
-    f.kernels->intersect(f.state->geometry->tree, f.primary.rays.data(), hits.data(), hits.size(), packets);
+    f.kernels->intersect(f.state->geometry->single_tree(), f.primary.rays.data(), hits.data(), hits.size(), packets);
     benchmark::DoNotOptimize(hits.data());
     benchmark::ClobberMemory();
   }
@@ -161,7 +161,8 @@ void BM_Occluded(benchmark::State& state, bool packets) {
   add_context(state, f, packets);
   std::vector<std::uint8_t> occluded(f.shadow.rays.size());
   for (auto _ : state) {
-    f.kernels->occluded(f.state->geometry->tree, f.shadow.rays.data(), occluded.data(), occluded.size(), packets);
+    f.kernels->occluded(f.state->geometry->single_tree(), f.shadow.rays.data(), occluded.data(), occluded.size(),
+                        packets);
     benchmark::DoNotOptimize(occluded.data());
     benchmark::ClobberMemory();
   }

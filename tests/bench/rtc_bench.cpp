@@ -151,9 +151,9 @@ void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const R
   occ.resize(s.rays.size());
   for_chunks(s, [&](std::size_t first, std::size_t n) {
     if (shadow) {
-      k.occluded(fs.geometry->tree, s.rays.data() + first, occ.data() + first, n, packets);
+      k.occluded(fs.geometry->single_tree(), s.rays.data() + first, occ.data() + first, n, packets);
     } else {
-      k.intersect(fs.geometry->tree, s.rays.data() + first, hits.data() + first, n, packets);
+      k.intersect(fs.geometry->single_tree(), s.rays.data() + first, hits.data() + first, n, packets);
       rtc::refine_hit_distances(fs.geometry->positions, fs.geometry->triangles, s.rays.data() + first,
                                 hits.data() + first, n);
     }
@@ -293,7 +293,7 @@ int run(int argc, char** argv) {
   const double build_ms = time_median_ms(reps, [&] {
     fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options);
   });
-  const rtc::KdBuildStats& kd = fs->geometry->tree.stats();
+  const rtc::KdBuildStats& kd = fs->geometry->single_tree().stats();
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
 
   std::unique_ptr<EmbreeScene> embree;

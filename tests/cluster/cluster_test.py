@@ -38,10 +38,13 @@ MSG_CHALLENGE, MSG_HELLO, MSG_AUTH, MSG_ERROR = 1, 2, 3, 14
 ERROR_AUTH_FAILED = 3
 AUTH_CONTEXT = b"rtc-auth-v1"
 
-# Small frames keep a case fast: a frame costs about one kd-tree build (~0.3 s) per worker.
+# Small frames keep a case fast: a worker's first frame builds the static meshes' kd-tree
+# (~0.2 s), every later one the moving sphere's (~25 ms) and traces its tiles.
 SMALL = ["--width", "96", "--height", "72"]
 MEDIUM = ["--width", "160", "--height", "120"]
 LARGE = ["--width", "320", "--height", "240"]
+# For cases whose run must last: ~0.13 s of tracing a frame on one thread.
+SLOW = [*LARGE, "--spp", "2"]
 
 
 class Failure(Exception):
@@ -486,16 +489,17 @@ def case_worker_killed_midframe(c):
 
 
 def case_worker_joins_midrun(c):
-    scene = [*MEDIUM, "--tile", "16"]
-    ref = c.reference("ref", scene, "0-9", "png")
+    # 16 frames, ~2 s with one worker: the second one joins well before the end.
+    scene = [*SLOW, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-15", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-9", "--out",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out",
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats])
     c.start_worker("early", addr, 1)
     wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
     before = read_stats(stats)[0]
-    if len(before) >= 8:
+    if len(before) >= 14:
         fail("the job ran too fast: the second worker would come too late")
     late = c.start_worker("late", addr, 1)
     expect_exit(master, 0, 90, "finish every frame")
@@ -512,7 +516,7 @@ def case_worker_joins_midrun(c):
         fail("the late worker shows in frames finished before it was started")
     if not later:
         fail(f"the late worker {labels['late']} got no tiles: {[f['tiles_by_worker'] for f in frames]}")
-    c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
+    c.expect_frames_equal(out, "m", ref, range(0, 16), "png")
 
 
 def case_master_restart(c):
@@ -689,9 +693,9 @@ def case_bad_peers(c):
     for f in frames:
         if set(f["tiles_by_worker"]) != {good_label}:
             fail(f"frame {f['frame']} has tiles from {f['tiles_by_worker']}, expected only {good_label}")
-    if sorted(f["frame"] for f in frames) != list(range(0, 16)):
-        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-15")
-    c.expect_frames_equal(out, "m", ref, range(0, 16), "png")
+    if sorted(f["frame"] for f in frames) != list(range(0, 24)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-23")
+    c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
 
 
 def interrupted_run(c, tag, scene, twice):
@@ -758,12 +762,12 @@ def case_worker_frozen(c):
     # A worker that stops answering (SIGSTOP: its socket stays open) is dropped after
     # --heartbeat-timeout; its tiles go to the other worker and every frame still comes out.
     # (Before the drop the tail re-issue already copies its tiles to the keeper, so the run must
-    # last longer than the timeout for the drop to happen inside it: 16 frames, ~3 s.)
-    scene = [*MEDIUM, "--tile", "16"]
-    ref = c.reference("ref", scene, "0-15", "png")
+    # last longer than the timeout for the drop to happen inside it: 24 frames, ~3 s.)
+    scene = [*SLOW, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out",
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats,
                                                 "--min-workers", "2", "--heartbeat-timeout", "1000"])
     keeper = c.start_worker("keeper", addr, 1)
@@ -781,9 +785,9 @@ def case_worker_frozen(c):
         frozen.send(signal.SIGCONT)
     expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
     frames, _ = read_stats(stats)
-    if sorted(f["frame"] for f in frames) != list(range(0, 16)):
-        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-15")
-    c.expect_frames_equal(out, "m", ref, range(0, 16), "png")
+    if sorted(f["frame"] for f in frames) != list(range(0, 24)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-23")
+    c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
     # Woken up, the frozen worker finds its connection closed and, with no master left, gives up or
     # keeps retrying; either way it is killed at cleanup.
 

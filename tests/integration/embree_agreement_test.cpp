@@ -28,7 +28,7 @@ void check_against_embree(const Scene& scene, const std::string& label) {
   const auto fs = build_frame_state(scene, scene.animation.frame_begin, scene.settings, KdBuildOptions{});
   const std::vector<RayQuery> rays = test::pixel_centre_rays(fs->camera_rays);
   std::vector<RayHit> ours(rays.size()), single(rays.size()), theirs(rays.size());
-  trace_kernels().intersect(fs->geometry->tree, rays.data(), single.data(), rays.size(), false);
+  trace_kernels().intersect(fs->geometry->single_tree(), rays.data(), single.data(), rays.size(), false);
   refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), single.data(), rays.size());
   // Every ISA this CPU runs, with its packets as pixel blocks (2x2, 4x2, 4x4), gives the single
   // rays' bits.
@@ -49,7 +49,7 @@ void check_against_embree(const Scene& scene, const std::string& label) {
       }
     }
     std::vector<RayHit> blocked_hits(blocked.size());
-    k.intersect(fs->geometry->tree, blocked.data(), blocked_hits.data(), blocked.size(), true);
+    k.intersect(fs->geometry->single_tree(), blocked.data(), blocked_hits.data(), blocked.size(), true);
     for (std::size_t i = 0; i < blocked.size(); ++i) ours[index[i]] = blocked_hits[i];
     refine_hit_distances(fs->geometry->positions, fs->geometry->triangles, rays.data(), ours.data(), rays.size());
     for (std::size_t i = 0; i < rays.size(); ++i) {

@@ -177,12 +177,12 @@ Tally measure(const Scene& scene, const std::string& what) {
   const int w = scene.width;
   const std::vector<RayQuery> primary = test::pixel_centre_rays(fs->camera_rays);
   std::vector<RayHit> hits(primary.size());
-  k.intersect(g.tree, primary.data(), hits.data(), primary.size(), true);
+  k.intersect(g.single_tree(), primary.data(), hits.data(), primary.size(), true);
 
   // The largest coordinate in the scene bounds the offset step of any secondary ray.
   float magnitude = 0.0f;
   for (const glm::vec3& p : g.positions) magnitude = std::max({magnitude, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
-  const Aabb box = g.tree.bounds();
+  const Aabb box = g.single_tree().bounds();
   const double size = glm::length(glm::dvec3(box.extent()));
   const double delta = 4.0 * static_cast<double>(magnitude) / 65536.0 + 1e-6 * size;
 
@@ -211,10 +211,10 @@ Tally measure(const Scene& scene, const std::string& what) {
       if (!sr) continue;
       ++tally.shadow_rays;
       std::uint8_t occ = 0;
-      k.occluded(g.tree, &sr->ray, &occ, 1, false);
+      k.occluded(g.single_tree(), &sr->ray, &occ, 1, false);
       tally.classes[i * scene.lights.size() + l] = occ ? 2 : 1;
       RayHit blocker;
-      k.intersect(g.tree, &sr->ray, &blocker, 1, false);
+      k.intersect(g.single_tree(), &sr->ray, &blocker, 1, false);
       if (blocker.prim != kNoHit) {
         const glm::uvec3 other = g.triangles[blocker.prim];
         if (blocker.prim == hit.prim) {
@@ -251,7 +251,7 @@ Tally measure(const Scene& scene, const std::string& what) {
     const RayQuery mq{s.point, 0.0f, r, std::numeric_limits<float>::infinity()};
     ++tally.mirror_rays;
     RayHit mh;
-    k.intersect(g.tree, &mq, &mh, 1, false);
+    k.intersect(g.single_tree(), &mq, &mh, 1, false);
     const Exact e = exact_hits(g, hit.prim, p, glm::dvec3(r), false, delta);
     if (mh.prim == hit.prim) {
       ++tally.mirror_self;

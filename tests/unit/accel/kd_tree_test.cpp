@@ -451,6 +451,48 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   }
 }
 
+TEST(KdTree, SubsetBuiltWithIdsReportsThoseIds) {
+  // Every third triangle of a sphere on a grid, with ids = their indices in the whole soup (in
+  // increasing order, so ties go the same way), against the same subset built without ids:
+  // the same hits, the ids mapped; and record_of still takes the index into the subset.
+  const Soup s = sphere_and_grid(24);
+  std::vector<glm::uvec3> subset;
+  std::vector<std::uint32_t> ids;
+  for (std::uint32_t t = 1; t < s.triangles.size(); t += 3) {
+    subset.push_back(s.triangles[t]);
+    ids.push_back(t);
+  }
+  const std::vector<RayQuery> rays = random_rays(37, 20000, true);
+  for (bool watertight : {false, true}) {
+    SCOPED_TRACE(test_name(watertight));
+    const KdTree plain = KdTree::build(s.positions, subset, with_test(watertight));
+    const KdTree with_ids = KdTree::build(s.positions, subset, with_test(watertight), ids);
+    for (std::uint32_t i = 0; i < subset.size(); ++i) {
+      ASSERT_EQ(plain.record_of(i).wald.id, i);
+      ASSERT_EQ(with_ids.record_of(i).wald.id, ids[i]);
+    }
+    for (bool packets : {true, false}) {
+      std::vector<RayHit> a(rays.size()), b(rays.size());
+      trace_kernels().intersect(plain, rays.data(), a.data(), rays.size(), packets);
+      trace_kernels().intersect(with_ids, rays.data(), b.data(), rays.size(), packets);
+      std::size_t hits = 0;
+      for (std::size_t i = 0; i < rays.size(); ++i) {
+        if (a[i].prim == kNoHit) {
+          ASSERT_EQ(b[i].prim, kNoHit) << test::describe_ray(rays[i]);
+          continue;
+        }
+        ++hits;
+        ASSERT_EQ(b[i].prim, ids[a[i].prim]) << "packets " << packets << " " << test::describe_ray(rays[i]);
+        ASSERT_EQ(b[i].prim % 3, 1u);
+        ASSERT_EQ(std::memcmp(&a[i].t, &b[i].t, sizeof(float)), 0) << test::describe_ray(rays[i]);
+        ASSERT_EQ(std::memcmp(&a[i].beta, &b[i].beta, sizeof(float)), 0) << test::describe_ray(rays[i]);
+        ASSERT_EQ(std::memcmp(&a[i].gamma, &b[i].gamma, sizeof(float)), 0) << test::describe_ray(rays[i]);
+      }
+      EXPECT_GT(hits, rays.size() / 10) << "packets " << packets;  // 3410 measured
+    }
+  }
+}
+
 TEST(KdTraversal, ZeroDirectionComponentsAndOriginsOnSplitPlanes) {
   // Axis-aligned boxes of triangles; rays along the axes (inverse directions +-inf), starting
   // exactly on the planes the grid puts splits on, with +0 and -0 components.

@@ -76,16 +76,26 @@ TEST(Renderer, EveryIsaGivesTheSamePixels) {
   }
 }
 
+// Whether every kd-tree of a prepared frame holds watertight records.
+bool trees_watertight(const FrameState& fs, bool watertight) {
+  for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) {
+    if (tree->watertight() != watertight) return false;
+  }
+  return !fs.geometry->trees.empty();
+}
+
 TEST(Renderer, IntersectorSettingReachesTheTree) {
   for (const Intersector intersector : {Intersector::Wald, Intersector::Watertight}) {
     Scene scene = small_default();
     scene.settings.intersector = intersector;
-    EXPECT_EQ(Renderer(scene).prepare(0)->geometry->tree.watertight(), intersector == Intersector::Watertight);
+    const auto fs = Renderer(scene).prepare(0);
+    EXPECT_EQ(fs->geometry->trees.size(), 2u) << "the static meshes' tree and the gold sphere's";
+    EXPECT_TRUE(trees_watertight(*fs, intersector == Intersector::Watertight));
     RenderOptions o;
     RenderSettings other = scene.settings;
     other.intersector = intersector == Intersector::Wald ? Intersector::Watertight : Intersector::Wald;
     o.settings = other;  // an override wins over the scene's
-    EXPECT_EQ(Renderer(scene, o).prepare(0)->geometry->tree.watertight(), intersector == Intersector::Wald);
+    EXPECT_TRUE(trees_watertight(*Renderer(scene, o).prepare(0), intersector == Intersector::Wald));
   }
 }
 

@@ -190,6 +190,50 @@ TEST(PoseAt, MeshesWithoutTracksKeepTheirPlacement) {
   EXPECT_EQ(still.world_from_object[0], glm::mat4(1.0f));
 }
 
+// A placement whose interpolation with itself rounds: scale, an oblique rotation, thirds.
+Transform oblique() {
+  Transform t;
+  t.translate = {0.1f, 0.7f, -2.3f};
+  t.rotate = glm::angleAxis(glm::radians(37.0f), glm::normalize(glm::vec3(0.3f, 1.0f, -0.2f)));
+  t.scale = glm::vec3(1.3f, 0.7f, 1.1f);
+  return t;
+}
+
+TEST(PoseAt, EqualKeysHoldTheirPlacementExactly) {
+  // Between equal keys the mesh must not move at all (its kd-tree is built once), not even by
+  // the rounding of interpolating a placement with itself.
+  Scene scene = animated_scene();
+  scene.animation.meshes[0].keys = {TransformKey{0, oblique()}, TransformKey{30, oblique()},
+                                    TransformKey{40, rotated_about_y(10.0f)}};
+  for (int frame = 0; frame <= 30; ++frame) {
+    EXPECT_EQ(pose_at(scene, frame).world_from_object[0], oblique().matrix()) << "frame " << frame;
+  }
+  EXPECT_NE(pose_at(scene, 35).world_from_object[0], oblique().matrix());
+}
+
+TEST(MovingMeshes, OnlyTracksWithDifferentKeysMove) {
+  Scene scene = animated_scene();
+  scene.meshes.push_back(scene.meshes[0]);
+  EXPECT_EQ(moving_meshes(scene), (std::vector<bool>{true, false, false}));
+  MeshTrack held;
+  held.mesh = 2;
+  held.keys = {TransformKey{0, oblique()}, TransformKey{5, oblique()}, TransformKey{9, oblique()}};
+  MeshTrack one_key;
+  one_key.mesh = 1;
+  one_key.keys = {TransformKey{3, oblique()}};
+  MeshTrack out_of_range;
+  out_of_range.mesh = 7;
+  out_of_range.keys = {TransformKey{0, oblique()}, TransformKey{5, Transform{}}};
+  scene.animation.meshes.push_back(held);
+  scene.animation.meshes.push_back(one_key);
+  scene.animation.meshes.push_back(out_of_range);
+  EXPECT_EQ(moving_meshes(scene), (std::vector<bool>{true, false, false}));
+  scene.animation.meshes[1].keys[1].transform.translate.x += 1e-6f;
+  EXPECT_EQ(moving_meshes(scene), (std::vector<bool>{true, false, true}));
+  scene.animation.meshes.erase(scene.animation.meshes.begin());
+  EXPECT_EQ(moving_meshes(scene), (std::vector<bool>{false, false, true}));
+}
+
 TEST(Scene, BoundsAndTriangleCountUseThePlacementAtTheFirstFrame) {
   const Scene scene = animated_scene();
   EXPECT_EQ(scene.triangle_count(), 2u);
