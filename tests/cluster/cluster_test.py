@@ -604,11 +604,13 @@ def case_bad_peers(c):
     wrong_token = c.path("wrong-token")
     with open(wrong_token, "w", encoding="utf-8") as f:
         f.write("not the token\n")
-    scene = [*SMALL, "--tile", "16"]
-    ref = c.reference("ref", scene, "0-15", "png")
+    # 24 frames, ~3 s with one worker: the master must outlive every bad peer (a master that
+    # finishes just after rejecting the intruder may close before the intruder reads why).
+    scene = [*SLOW, "--tile", "16"]
+    ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out",
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats,
                                                 "--token-file", token])
     good = c.start_worker("good", addr, 1, ["--token-file", token])
