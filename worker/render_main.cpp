@@ -116,9 +116,11 @@ int run(int argc, char** argv) {
   double last_full_ms = 0;
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
+    const double cpu_start = rtc::process_cpu_ms();
     const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(f);
     const double prepare_ms = frame_timer.elapsed_ms();
     const double cpu_before = rtc::process_cpu_ms();
+    const double prepare_cpu_ms = cpu_before - cpu_start;
     const auto pixels = static_cast<std::uint64_t>(state->width) * static_cast<std::uint64_t>(state->height);
     rtc::ProgressBar progress(pixels, "frame " + std::to_string(f), "px");
     rtc::TileRayCounts counts;
@@ -151,10 +153,10 @@ int run(int argc, char** argv) {
     const std::string path = rtc::expand_frame_pattern(out_pattern, f, multiple);
     rtc::write_image(path, *image, write_options);
     const double seconds = std::max(render_ms, 1e-3) / 1000.0;
-    std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms, render %.0f ms (cpu %.0f ms), %.2f M rays/s "
+    std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms (cpu %.0f ms), render %.0f ms (cpu %.0f ms), %.2f M rays/s "
                 "(%llu primary, %llu shadow, %llu reflection)%s\n",
                 f, path.c_str(), state->width, state->height, frame_timer.elapsed_ms() / 1000.0, prepare_ms,
-                render_ms, render_cpu_ms, static_cast<double>(counts.total()) / seconds / 1e6,
+                prepare_cpu_ms, render_ms, render_cpu_ms, static_cast<double>(counts.total()) / seconds / 1e6,
                 static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
                 static_cast<unsigned long long>(counts.reflection), temporal_note.c_str());
     std::fflush(stdout);

@@ -34,6 +34,9 @@ struct FrameGeometry {
   /// the triangle's index in the arrays above as its id, whichever tree holds it; a ray goes
   /// through all of them (closest hit: the nearest, equal t to the higher id).
   std::vector<std::shared_ptr<const KdTree>> trees;
+  /// trees[0] holds only meshes that never move (moving_meshes): a ray it blocks is blocked in
+  /// every frame of the animation, so temporal coherence need not mark that shadow ray.
+  bool first_tree_static = false;
 
   /// The tree when there is exactly one (static scenes, build_frame_state); RTC_CHECK fails
   /// otherwise. For tools and tests that trace a tree directly.

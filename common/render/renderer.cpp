@@ -180,6 +180,8 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   tree_options.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
   geometry->trees.push_back(
       std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, tree_options)));
+  const std::vector<bool> moving = moving_meshes(scene);
+  geometry->first_tree_static = std::find(moving.begin(), moving.end(), true) == moving.end();
   fs->geometry = std::move(geometry);
   return fs;
 }
@@ -228,6 +230,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     geometry->trees.push_back(
         std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, kd)));
     ++built;
+    geometry->first_tree_static = std::find(moving_.begin(), moving_.end(), true) == moving_.end();
     spdlog::debug("frame {}: one tree over all meshes: {}", frame, geometry->trees[0]->stats().to_string());
   } else {
     // The trees' ids number all triangles: the limit of one tree over all of them applies.
@@ -259,6 +262,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
                 "Renderer: a mesh that moving_meshes() calls static moved");
     }
     geometry->trees.push_back(static_tree_);
+    geometry->first_tree_static = true;
     KdBuildOptions moving_kd = kd;
     moving_kd.clip = kd_clip_for(options_.kd_clip, true);
     std::size_t t_base = 0, moving_index = 0;

@@ -13,6 +13,10 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+/// Pieces per cell a marked group moves: finer pieces hug the rays closer (fewer voxels beside
+/// them marked, fewer tiles retraced) for more boxes to mark.
+constexpr double kPiecesPerCell = 1;
+
 struct DBox {
   glm::dvec3 lo{kInf};
   glm::dvec3 hi{-kInf};
@@ -195,6 +199,12 @@ void MarkRecorder::mark_box(int list, const glm::dvec3& lo, const glm::dvec3& hi
     a[k] = static_cast<int>(std::max(fa, 0.0));
     b[k] = static_cast<int>(std::min(fb, static_cast<double>(grid_.dims[k] - 1)));
   }
+  // Consecutive pieces of a group often cover the same voxels: set them once.
+  int* prev = last_box_[list];
+  if (a[0] == prev[0] && a[1] == prev[1] && a[2] == prev[2] && b[0] == prev[3] && b[1] == prev[4] && b[2] == prev[5]) {
+    return;
+  }
+  prev[0] = a[0], prev[1] = a[1], prev[2] = a[2], prev[3] = b[0], prev[4] = b[1], prev[5] = b[2];
   std::vector<std::uint64_t>& bits = bits_[list];
   std::vector<std::uint32_t>& touched = touched_[list];
   const auto nx = static_cast<std::uint32_t>(grid_.dims.x), ny = static_cast<std::uint32_t>(grid_.dims.y);
@@ -252,7 +262,7 @@ void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir,
   // Pieces in t that each move about a cell.
   double rate = 0.0;
   for (int k = 0; k < 3; ++k) rate = std::max(rate, std::max(std::abs(d_box.lo[k]), std::abs(d_box.hi[k])) * inv_cell_[k]);
-  const int pieces = static_cast<int>(std::clamp(std::ceil((t_hi - t_lo) * rate), 1.0, 16.0 * kMaxMarkCellsPerAxis));
+  const int pieces = static_cast<int>(std::clamp(std::ceil((t_hi - t_lo) * rate * kPiecesPerCell), 1.0, 16.0 * kMaxMarkCellsPerAxis));
   double ta = t_lo;
   for (int j = 1; j <= pieces; ++j) {
     const double tb = j == pieces ? t_hi : t_lo + (t_hi - t_lo) * j / pieces;
@@ -307,7 +317,7 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
     cells = std::max(cells, std::max(std::abs(box_b.lo[k] - box_a.lo[k]), std::abs(box_b.hi[k] - box_a.hi[k])) *
                                 inv_cell_[k]);
   }
-  const int pieces = static_cast<int>(std::clamp(std::ceil(cells * (s1 - s0)), 1.0, 16.0 * kMaxMarkCellsPerAxis));
+  const int pieces = static_cast<int>(std::clamp(std::ceil(cells * (s1 - s0) * kPiecesPerCell), 1.0, 16.0 * kMaxMarkCellsPerAxis));
   auto lerp = [](const glm::dvec3& a, const glm::dvec3& b, double t) { return a + (b - a) * t; };
   glm::dvec3 lo0 = lerp(box_a.lo, box_b.lo, s0), hi0 = lerp(box_a.hi, box_b.hi, s0);
   for (int j = 1; j <= pieces; ++j) {
@@ -338,6 +348,7 @@ void MarkRecorder::take(TileMarks& out) {
   }
   out.shaded = shaded_;
   shaded_ = false;
+  for (int* last : last_box_) std::fill(last, last + 6, -1);
 }
 
 // ---- tracker --------------------------------------------------------------------------------

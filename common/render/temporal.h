@@ -51,7 +51,7 @@ struct MarkGrid {
 };
 
 /// Cells along the grid's longest axis by default (the others get cells of about the same size).
-inline constexpr int kDefaultMarkCells = 16;
+inline constexpr int kDefaultMarkCells = 24;
 /// Largest cells per axis and voxels a grid may have (MarkGrid messages are checked against it).
 inline constexpr int kMaxMarkCellsPerAxis = 256;
 inline constexpr std::uint32_t kMaxMarkVoxels = 1u << 21;
@@ -110,6 +110,7 @@ class MarkRecorder {
   double pad_ = 0.0;
   std::vector<std::uint64_t> bits_[2];
   std::vector<std::uint32_t> touched_[2];  ///< indices of non-zero words of bits_
+  int last_box_[2][6] = {{-1, -1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1, -1}};  ///< voxel range marked last, per list
   bool shaded_ = false;
 };
 

@@ -7,7 +7,7 @@ import re
 import statistics
 import sys
 
-FRAME = re.compile(r"^frame (\d+): wrote .* prepare (\d+) ms, render (\d+) ms \(cpu (\d+) ms\)")
+FRAME = re.compile(r"^frame (\d+): wrote .* prepare (\d+) ms \(cpu (\d+) ms\), render (\d+) ms \(cpu (\d+) ms\)")
 RETRACED = re.compile(r"\| (\d+)/(\d+) tiles retraced")
 ALL = re.compile(r"\| all (\d+) tiles traced")
 
@@ -18,7 +18,8 @@ def parse(name, mode, run):
         if not m:
             continue
         rec = {"kind": "render", "scene": name, "mode": mode, "run": int(run), "frame": int(m.group(1)),
-               "prepare_ms": int(m.group(2)), "render_ms": int(m.group(3)), "cpu_ms": int(m.group(4))}
+               "prepare_ms": int(m.group(2)), "prepare_cpu_ms": int(m.group(3)), "render_ms": int(m.group(4)),
+               "cpu_ms": int(m.group(5))}
         r = RETRACED.search(line)
         a = ALL.search(line)
         if r:
@@ -55,10 +56,12 @@ def table(path):
 
     print("# Temporal coherence (issue 7): incremental frames against full re-renders\n")
     print("Regenerate with `tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12). Per frame: "
-          "time = prepare (kd-tree) + render wall ms of `rtc-render`, median over the runs; `--temporal off` traces "
+          "time = prepare (kd-trees) + render of `rtc-render`, median over the runs; `--temporal off` traces "
           "every frame whole, `--temporal on` traces frame 0 whole while recording marks, then only the tiles the "
-          "tracker finds dirty. Speed-up = sum over frames 1..N of full time / incremental time. First-frame "
-          "overhead = incremental frame 0 / full frame 0 (render CPU time, the marking cost). Wire: bytes per frame "
+          "tracker finds dirty. Times are process CPU time (steadier than wall time on a shared machine; with "
+          "THREADS > 1 summed over the threads). Speed-up = sum over frames 1..N of the full frames' prepare + "
+          "render time / the incremental frames'; render only leaves prepare out. First-frame overhead = "
+          "incremental frame 0 / full frame 0, render CPU time (the cost of marking). Wire: bytes per frame "
           "the master received (tiles + marks) with 2 workers, frames 1..N.\n")
     print("| animation | frames | tiles | traced per frame (mean, min-max) | full ms/frame | incremental ms/frame | "
           "speed-up | render only | first-frame overhead | wire KB/frame full | incremental | of which marks | saved |")
@@ -76,10 +79,10 @@ def table(path):
             return med([x[key] for x in by.get((mode, f), [])])
 
         later = frames[1:]
-        full = sum(t("off", f, "prepare_ms") + t("off", f, "render_ms") for f in later)
-        inc = sum(t("on", f, "prepare_ms") + t("on", f, "render_ms") for f in later)
-        full_r = sum(t("off", f, "render_ms") for f in later)
-        inc_r = sum(t("on", f, "render_ms") for f in later)
+        full = sum(t("off", f, "prepare_cpu_ms") + t("off", f, "cpu_ms") for f in later)
+        inc = sum(t("on", f, "prepare_cpu_ms") + t("on", f, "cpu_ms") for f in later)
+        full_r = sum(t("off", f, "cpu_ms") for f in later)
+        inc_r = sum(t("on", f, "cpu_ms") for f in later)
         over = t("on", frames[0], "cpu_ms") / max(t("off", frames[0], "cpu_ms"), 1e-9)
         traced = [by[("on", f)][0].get("traced", 0) for f in later if ("on", f) in by]
         tiles = by[("on", frames[0])][0].get("tiles", 0) if ("on", frames[0]) in by else 0
