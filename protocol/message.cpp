@@ -27,9 +27,11 @@ constexpr std::uint32_t prefixed(std::size_t n) { return static_cast<std::uint32
 /// TileResult's fixed fields before the pixel blob's length prefix.
 constexpr std::uint32_t kTileResultFixed = 4 + 4 + 4 + 4 * 4 + 3 + 4 + 4 + 3 * 8;
 constexpr std::uint32_t kMaxTilePixels = kMaxPayload - kTileResultFixed - 4;
-/// A voxel list: count u32, then each voxel as the LEB128 varint of its difference from the one
-/// before (the first from 0), at most 5 bytes each.
-constexpr std::uint32_t kTileMarksMax = 4 + 4 + 1 + 2 * (4 + 5 * kMaxMarkVoxels);
+/// TileMarks: sequence, tile, shaded, the two counts, the packed size and the zlib stream of the
+/// voxels as LEB128 varint deltas (at most 5 bytes each before compression).
+constexpr std::uint32_t kMaxMarkVarintBytes = 2 * 5 * kMaxMarkVoxels;
+constexpr std::uint32_t kMaxMarkPacked = kMaxMarkVarintBytes + kMaxMarkVarintBytes / 500 + 64;  // deflate's bound
+constexpr std::uint32_t kTileMarksMax = 4 + 4 + 1 + 4 + 4 + 4 + kMaxMarkPacked;
 static_assert(kTileMarksMax <= kMaxPayload);
 
 // Message's alternatives are in MessageType order: alternative i is type i + 1.
@@ -225,28 +227,37 @@ void put(ByteWriter& w, const MarkGrid& m) {
   for (const double v : m.hi) w.f64(v);
   for (const std::uint32_t v : m.dims) w.u32(v);
 }
-void put_voxels(ByteWriter& w, const std::vector<std::uint32_t>& voxels) {
+void put_varints(std::vector<std::uint8_t>& out, const std::vector<std::uint32_t>& voxels) {
   RTC_CHECK(voxels.size() <= kMaxMarkVoxels, "TileMarks list over kMaxMarkVoxels");
-  w.u32(static_cast<std::uint32_t>(voxels.size()));
   std::uint32_t last = 0;
   for (const std::uint32_t v : voxels) {
     RTC_CHECK(v >= last, "TileMarks voxels must ascend");
     std::uint32_t d = v - last;
     last = v;
     while (d >= 0x80) {
-      w.u8(static_cast<std::uint8_t>(d | 0x80));
+      out.push_back(static_cast<std::uint8_t>(d | 0x80));
       d >>= 7;
     }
-    w.u8(static_cast<std::uint8_t>(d));
+    out.push_back(static_cast<std::uint8_t>(d));
   }
 }
-// sequence u32 | tile u32 | shaded u8 | path voxels | shadow voxels
+// sequence u32 | tile u32 | shaded u8 | path count u32 | shadow count u32 | packed size u32 |
+// zlib stream of both lists' varint deltas (mark lists pack several times smaller)
 void put(ByteWriter& w, const TileMarks& m) {
   w.u32(m.sequence);
   w.u32(m.tile);
   put_bool(w, m.shaded);
-  put_voxels(w, m.path);
-  put_voxels(w, m.shadow);
+  w.u32(static_cast<std::uint32_t>(m.path.size()));
+  w.u32(static_cast<std::uint32_t>(m.shadow.size()));
+  std::vector<std::uint8_t> raw;
+  put_varints(raw, m.path);
+  put_varints(raw, m.shadow);
+  uLongf packed_size = compressBound(static_cast<uLong>(raw.size()));
+  std::vector<std::uint8_t> packed(packed_size);
+  const int rc = compress2(packed.data(), &packed_size, raw.data(), static_cast<uLong>(raw.size()), 1);
+  RTC_CHECK(rc == Z_OK && packed_size <= kMaxMarkPacked, "TileMarks: zlib compress2 failed");
+  w.u32(static_cast<std::uint32_t>(packed_size));
+  w.raw(packed.data(), packed_size);
 }
 
 // ---- Decoding: the reader fails stickily; validation below adds what a field must satisfy. ----
@@ -364,43 +375,57 @@ void get(ByteReader& r, MarkGrid& m) {
   for (double& v : m.hi) v = r.f64("hi");
   for (std::uint32_t& v : m.dims) v = r.u32("dims");
 }
-std::vector<std::uint32_t> get_voxels(ByteReader& r, const char* what) {
-  std::vector<std::uint32_t> out;
-  const std::uint32_t n = r.u32(what);
-  if (!r.ok()) return out;
-  if (n > kMaxMarkVoxels || n > r.remaining()) {
-    r.fail(what, "count " + std::to_string(n) + " is over the limit or the bytes left");
-    return out;
-  }
-  out.reserve(n);
-  std::uint64_t value = 0;
-  for (std::uint32_t i = 0; i < n && r.ok(); ++i) {
-    std::uint64_t d = 0;
-    for (int shift = 0;; shift += 7) {
-      const std::uint8_t b = r.u8(what);
-      if (!r.ok()) return out;
-      if (shift > 28) {
-        r.fail(what, "varint longer than 5 bytes");
-        return out;
-      }
-      d |= static_cast<std::uint64_t>(b & 0x7f) << shift;
-      if ((b & 0x80) == 0) break;
-    }
-    value += d;
-    if (value > 0xffffffffu) {
-      r.fail(what, "voxel index over 32 bits");
-      return out;
-    }
-    out.push_back(static_cast<std::uint32_t>(value));
-  }
-  return out;
-}
 void get(ByteReader& r, TileMarks& m) {
   m.sequence = r.u32("sequence");
   m.tile = r.u32("tile");
   m.shaded = get_bool(r, "shaded");
-  m.path = get_voxels(r, "path");
-  m.shadow = get_voxels(r, "shadow");
+  const std::uint32_t counts[2] = {r.u32("path count"), r.u32("shadow count")};
+  const std::uint32_t packed_size = r.u32("packed size");
+  if (!r.ok()) return;
+  if (counts[0] > kMaxMarkVoxels || counts[1] > kMaxMarkVoxels) {
+    r.fail("path count", "voxel counts " + std::to_string(counts[0]) + " and " + std::to_string(counts[1]) +
+                             " exceed the limit " + std::to_string(kMaxMarkVoxels));
+    return;
+  }
+  const std::span<const std::uint8_t> packed = r.take(packed_size, "packed voxels");
+  if (!r.ok()) return;
+  // At most 5 bytes a voxel unpacked (and deflate expands at most ~1032:1): a stream that
+  // inflates further is refused, not followed.
+  const std::uint64_t limit =
+      std::min<std::uint64_t>(5ull * (std::uint64_t{counts[0]} + counts[1]), 1032ull * packed_size + 64);
+  std::vector<std::uint8_t> raw(static_cast<std::size_t>(limit) + 1);
+  uLongf raw_size = static_cast<uLongf>(raw.size());
+  const int rc = uncompress(raw.data(), &raw_size, packed.data(), static_cast<uLong>(packed.size()));
+  if (rc != Z_OK || raw_size > limit) {
+    r.fail("packed voxels", rc == Z_OK || rc == Z_BUF_ERROR ? "unpacks to more bytes than the counts allow"
+                                                           : "not a zlib stream (zlib error " + std::to_string(rc) + ")");
+    return;
+  }
+  std::size_t pos = 0;
+  for (int list = 0; list < 2; ++list) {
+    std::vector<std::uint32_t>& out = list == 0 ? m.path : m.shadow;
+    out.reserve(counts[list]);
+    std::uint64_t value = 0;
+    for (std::uint32_t i = 0; i < counts[list]; ++i) {
+      std::uint64_t d = 0;
+      for (int shift = 0;; shift += 7) {
+        if (pos >= raw_size || shift > 28) {
+          r.fail("packed voxels", pos >= raw_size ? "fewer voxels than counted" : "varint longer than 5 bytes");
+          return;
+        }
+        const std::uint8_t byte = raw[pos++];
+        d |= static_cast<std::uint64_t>(byte & 0x7f) << shift;
+        if ((byte & 0x80) == 0) break;
+      }
+      value += d;
+      if (value > 0xffffffffu) {
+        r.fail("packed voxels", "voxel index over 32 bits");
+        return;
+      }
+      out.push_back(static_cast<std::uint32_t>(value));
+    }
+  }
+  if (pos != raw_size) r.fail("packed voxels", std::to_string(raw_size - pos) + " bytes beyond the counted voxels");
 }
 
 // What a field must satisfy beyond its bytes; "" when the message is valid.
