@@ -36,7 +36,8 @@ int run(int argc, char** argv) {
   int threads = 0, tile = 32;
   std::string isa_text, log_level = "info", kd_clip = "auto", temporal_text = "auto";
   int mark_cells = rtc::kDefaultMarkCells;
-  bool exr_float = false, single_rays = false, no_depth = false, no_normal = false;
+  bool exr_float = false, single_rays = false, no_depth = false, no_normal = false, no_specialise = false,
+       no_skip_empty = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
@@ -48,6 +49,10 @@ int run(int argc, char** argv) {
   rtc::add_kd_clip_option(app, kd_clip);
   rtc::add_temporal_options(app, temporal_text, mark_cells);
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
+  app.add_flag("--no-specialise", no_specialise,
+               "the general tile kernel instead of the one specialised to the scene's features (same pixels)");
+  app.add_flag("--no-skip-empty", no_skip_empty,
+               "trace primary rays that miss the scene's bounds instead of skipping them (same pixels)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
@@ -92,6 +97,8 @@ int run(int argc, char** argv) {
   options.packets = !single_rays;
   options.kd_clip = rtc::parse_kd_clip(kd_clip);
   options.aovs = !(no_depth && no_normal);
+  options.specialise = !no_specialise;
+  options.skip_empty = !no_skip_empty;
   rtc::Renderer renderer(std::move(scene), options);
   spdlog::info("kernels: {}, {}, {} threads", rtc::isa_name(renderer.isa()),
                single_rays ? std::string("single rays") : rtc::isa_packet_description(renderer.isa()),
@@ -154,11 +161,12 @@ int run(int argc, char** argv) {
     rtc::write_image(path, *image, write_options);
     const double seconds = std::max(render_ms, 1e-3) / 1000.0;
     std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms (cpu %.0f ms), render %.0f ms (cpu %.0f ms), %.2f M rays/s "
-                "(%llu primary, %llu shadow, %llu reflection)%s\n",
+                "(%llu primary, %llu of them skipped as empty space, %llu shadow, %llu reflection)%s\n",
                 f, path.c_str(), state->width, state->height, frame_timer.elapsed_ms() / 1000.0, prepare_ms,
                 prepare_cpu_ms, render_ms, render_cpu_ms, static_cast<double>(counts.total()) / seconds / 1e6,
-                static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
-                static_cast<unsigned long long>(counts.reflection), temporal_note.c_str());
+                static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.primary_skipped),
+                static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
+                temporal_note.c_str());
     std::fflush(stdout);
   }
   return 0;

@@ -30,9 +30,8 @@ CameraRays::CameraRays(const Camera& camera, int width, int height) : width_(wid
 }
 
 RayD CameraRays::ray_double(int x, int y, double sub_x, double sub_y) const {
-  const double w = width_, hgt = height_;
-  const double sx = (2.0 * (x + sub_x) / w - 1.0) * h_ * (w / hgt);
-  const double sy = (1.0 - 2.0 * (y + sub_y) / hgt) * h_;
+  const double sx = image_a(x + sub_x);
+  const double sy = image_b(y + sub_y);
   return RayD{eye_, glm::normalize(forward_ + sx * right_ + sy * up2_)};
 }
 

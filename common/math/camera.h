@@ -45,6 +45,19 @@ class CameraRays {
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
 
+  /// The frame the rays are made from, in double: ray(x, y, sub_x, sub_y) leaves eye along
+  /// normalize(forward + a right + b up) with a = image_a(x + sub_x) and b = image_b(y + sub_y),
+  /// both affine in the image position, so the rays through an image rectangle lie in the cone
+  /// of its four corner rays.
+  [[nodiscard]] const glm::dvec3& eye() const { return eye_; }
+  [[nodiscard]] const glm::dvec3& forward() const { return forward_; }
+  [[nodiscard]] const glm::dvec3& right() const { return right_; }
+  [[nodiscard]] const glm::dvec3& up() const { return up2_; }
+  [[nodiscard]] double image_a(double x) const {
+    return (2.0 * x / width_ - 1.0) * h_ * (static_cast<double>(width_) / height_);
+  }
+  [[nodiscard]] double image_b(double y) const { return (1.0 - 2.0 * y / height_) * h_; }
+
  private:
   glm::dvec3 eye_, forward_, right_, up2_;
   double h_ = 1.0;

@@ -13,6 +13,7 @@
 #include "common/accel/trace.h"
 #include "common/base/error.h"
 #include "common/math/camera.h"
+#include "common/math/frustum_cull.h"
 #include "common/scene/scene.h"
 
 namespace rtc {
@@ -56,6 +57,22 @@ struct ExternalTracer {
   void (*occluded)(void* context, const RayQuery* rays, std::uint8_t* occluded, std::size_t count) = nullptr;
 };
 
+/// What a frame's shading can need, found once per FrameState (analyse_frame, renderer.h). The
+/// tile kernels are specialised to some of it (render_kernels.h); the rest is reported only.
+/// The defaults say "everything", which the general kernel handles.
+struct FrameFeatures {
+  bool lights = true;  ///< at least one light: shadow rays
+  /// A material can spawn a mirror ray: reflective, max3(specular) >= min_weight and > 0, and
+  /// max_depth > 0.
+  bool reflections = true;
+  bool highlights = true;      ///< a material has max3(specular) > 0: Phong highlights (with lights)
+  bool single_sample = false;  ///< spp == 1
+  bool background = true;      ///< the background colour is not black
+  bool ambient = true;         ///< the ambient colour or some material's emission is not black
+
+  bool operator==(const FrameFeatures&) const = default;
+};
+
 /// Everything a tile render of one frame reads. Immutable once built; share it between
 /// threads freely.
 struct FrameState {
@@ -70,6 +87,8 @@ struct FrameState {
   glm::vec3 ambient{0.0f};
   RenderSettings settings;
   const ExternalTracer* tracer = nullptr;  ///< null: rtc's own kd-tree kernels
+  FrameFeatures features;  ///< from analyse_frame
+  FrustumCull cull;        ///< primary rays against frame_bounds, from analyse_frame (default: culls nothing)
 };
 
 }  // namespace rtc

@@ -14,13 +14,17 @@ class MarkRecorder;
 
 /// Rays traced for a tile, by kind (added to, not reset).
 struct TileRayCounts {
-  std::uint64_t primary = 0;
+  std::uint64_t primary = 0;  ///< camera rays, one per pixel and sample (skipped ones included)
   std::uint64_t shadow = 0;
   std::uint64_t reflection = 0;
+  /// Of `primary`, those that never entered the kd-tree: their tile or packet provably misses
+  /// the geometry's bounds (TileKernelOptions::skip_empty).
+  std::uint64_t primary_skipped = 0;
   TileRayCounts& operator+=(const TileRayCounts& o) {
     primary += o.primary;
     shadow += o.shadow;
     reflection += o.reflection;
+    primary_skipped += o.primary_skipped;
     return *this;
   }
   [[nodiscard]] std::uint64_t total() const { return primary + shadow + reflection; }
@@ -35,12 +39,19 @@ inline void sample_offset(int s, double& sx, double& sy) {
   sy = std::fmod(0.5 + kA2 * s, 1.0);
 }
 
+/// How a tile is traced; none of it changes a pixel (RenderOptions has the same fields).
+struct TileKernelOptions {
+  bool packets = true;     ///< false: the single-ray (N = 1) kernels
+  bool specialise = true;  ///< the kernel specialised to FrameState::features; false: the general one
+  bool skip_empty = true;  ///< skip primary rays that FrameState::cull says miss everything
+};
+
 /// Entry points of one ISA. `render_tile` writes pixels [x0, x0+w) x [y0, y0+h) of the
 /// frame into `out` (already w x h; depth/normal filled when present); `marks` (optional)
 /// records the voxels the rays cross (common/render/temporal.h).
 struct RenderKernels {
   Isa isa = Isa::Sse42;
-  void (*render_tile)(const FrameState& state, int x0, int y0, int w, int h, bool packets,
+  void (*render_tile)(const FrameState& state, int x0, int y0, int w, int h, const TileKernelOptions& options,
                       Image& out, TileRayCounts& counts, MarkRecorder* marks) = nullptr;
 };
 

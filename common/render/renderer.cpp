@@ -131,6 +131,57 @@ void reflatten(const Scene& scene, const FramePose& pose, const FrameGeometry& p
   }
 }
 
+}  // namespace
+
+Aabb frame_bounds(const FrameGeometry& geometry) {
+  Aabb box;
+  for (const std::shared_ptr<const KdTree>& tree : geometry.trees) {
+    if (tree != nullptr && !tree->empty()) box.extend(tree->bounds());
+  }
+  return box;
+}
+
+void analyse_frame(FrameState& fs) {
+  const auto max3 = [](const glm::vec3& a) { return std::max(a.x, std::max(a.y, a.z)); };
+  const auto black = [](const glm::vec3& a) { return a == glm::vec3(0.0f); };
+  FrameFeatures f;
+  f.lights = !fs.lights.empty();
+  f.reflections = false;
+  f.highlights = false;
+  f.ambient = !black(fs.ambient);
+  for (const Material& m : fs.materials) {
+    // The kernels' own test for a mirror ray off a primary hit (weight 1 x specular); no
+    // material passing it means no reflection ray at any depth.
+    const float w = max3(glm::vec3(1.0f) * m.specular);
+    f.reflections =
+        f.reflections || (m.reflective && fs.settings.max_depth > 0 && w >= fs.settings.min_weight && w > 0.0f);
+    f.highlights = f.highlights || max3(m.specular) > 0.0f;
+    f.ambient = f.ambient || !black(m.emission);
+  }
+  f.single_sample = fs.settings.spp <= 1;
+  f.background = !black(fs.background);
+  fs.features = f;
+  fs.cull = fs.geometry ? FrustumCull(fs.camera_rays, frame_bounds(*fs.geometry)) : FrustumCull();
+}
+
+std::string describe(const FrameFeatures& f) {
+  std::string out;
+  const auto add = [&out](bool on, const char* name) {
+    if (!on) return;
+    if (!out.empty()) out += ' ';
+    out += name;
+  };
+  add(f.lights, "lights");
+  add(f.reflections, "reflections");
+  add(f.highlights, "highlights");
+  add(f.background, "background");
+  add(f.ambient, "ambient");
+  add(f.single_sample, "spp=1");
+  return out.empty() ? "none" : out;
+}
+
+namespace {
+
 // Everything of a frame but its geometry.
 std::shared_ptr<FrameState> frame_state_at(const Scene& scene, const FramePose& pose, const RenderSettings& settings) {
   check_render_settings(settings);
@@ -183,6 +234,7 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   const std::vector<bool> moving = moving_meshes(scene);
   geometry->first_tree_static = std::find(moving.begin(), moving.end(), true) == moving.end();
   fs->geometry = std::move(geometry);
+  analyse_frame(*fs);
   return fs;
 }
 
@@ -205,6 +257,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     fs->camera = pose.camera;
     fs->camera_rays = CameraRays(pose.camera, scene_.width, scene_.height);
     fs->lights = pose.lights;
+    analyse_frame(*fs);
     last_ = std::move(fs);
     spdlog::debug("frame {}: no mesh moved, geometry and kd-trees reused", frame);
     return last_;
@@ -285,6 +338,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
   spdlog::debug("frame {}: flattened in {:.1f} ms; built {} of {} kd-trees in {:.1f} ms", frame, flatten_ms, built,
                 geometry->trees.size(), build_timer.elapsed_ms());
   fs->geometry = std::move(geometry);
+  analyse_frame(*fs);
   last_ = std::move(fs);
   last_world_from_object_ = pose.world_from_object;
   return last_;
@@ -302,7 +356,8 @@ void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h
     out = Image(w, h, options_.aovs, options_.aovs);
   }
   TileRayCounts local;
-  render_kernels(isa_).render_tile(state, x0, y0, w, h, options_.packets, out, local, marks);
+  const TileKernelOptions k{options_.packets, options_.specialise, options_.skip_empty};
+  render_kernels(isa_).render_tile(state, x0, y0, w, h, k, out, local, marks);
   if (counts != nullptr) *counts += local;
 }
 

@@ -3,11 +3,13 @@
 
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "common/accel/kd_tree.h"
 #include "common/base/isa.h"
 #include "common/image/image.h"
+#include "common/math/aabb.h"
 #include "common/render/frame_state.h"
 #include "common/render/render_kernels.h"
 #include "common/scene/scene.h"
@@ -30,6 +32,13 @@ struct RenderOptions {
   /// them); false is for those tests and for timing the difference.
   bool split_static_trees = true;
   bool aovs = true;                        ///< fill Image::depth and Image::normal
+  /// Tile kernels specialised to the frame's features (FrameState::features); false: the general
+  /// kernel, which tests for every feature as it goes. The same pixels either way.
+  bool specialise = true;
+  /// Primary rays that provably miss the geometry's bounds (FrameState::cull) are not traced;
+  /// whole tiles and packets of them get the background as a miss would. The same pixels and
+  /// temporal marks either way.
+  bool skip_empty = true;
   /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must
   /// outlive the renderer.
   const ExternalTracer* tracer = nullptr;
@@ -87,6 +96,19 @@ class Renderer {
 /// per frame when a mesh moves (moving_meshes): what build_frame_state's callers and a renderer
 /// without RenderOptions::split_static_trees use.
 [[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
+
+/// The box every primary ray that can hit anything passes through: the union of the bounds of
+/// the frame's kd-trees (KdTree::bounds(); empty when there is nothing to hit).
+[[nodiscard]] Aabb frame_bounds(const FrameGeometry& geometry);
+
+/// Fills fs.features and fs.cull from the rest of `fs` (geometry, camera, lights, materials,
+/// settings, background, ambient). build_frame_state and Renderer::prepare call it; call it
+/// again after changing any of those.
+void analyse_frame(FrameState& fs);
+
+/// The features that are present, e.g. "lights reflections highlights background ambient spp=1"
+/// ("none" when none is).
+[[nodiscard]] std::string describe(const FrameFeatures& features);
 
 /// Builds the world-space state of `frame` (no reuse) with one tree over all meshes. Exposed
 /// for tools and tests. The tree uses `kd`, except that `settings.intersector` decides

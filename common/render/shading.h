@@ -30,6 +30,11 @@ struct SurfaceSample {
 [[nodiscard]] SurfaceSample surface_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim,
                                        float beta, float gamma);
 
+/// surface_at(fs, dir, prim, beta, gamma).normal alone (the same bits), for kernels that need
+/// nothing else of the surface.
+[[nodiscard]] glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim, float beta,
+                                          float gamma);
+
 /// A shadow ray from a surface to a point light: origin = the offset hit point, dir = light -
 /// origin, t in (0, 1). `to_light` is the unit direction used for shading.
 struct ShadowRay {

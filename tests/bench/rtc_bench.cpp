@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -241,6 +242,19 @@ int run(int argc, char** argv) {
   std::string intersector;
   app.add_option("--intersector", intersector, "ray/triangle test: wald or watertight (default: the scene's, normally wald)")
       ->check(CLI::IsMember({"wald", "watertight"}));
+  bool no_specialise = false, no_skip_empty = false, kernel_ab = false, no_lights = false, no_mirrors = false;
+  bool no_aovs = false;
+  int spp = 0;
+  app.add_flag("--no-specialise", no_specialise,
+               "full mode: the general tile kernel instead of the one specialised to the scene's features");
+  app.add_flag("--no-skip-empty", no_skip_empty, "full mode: trace primary rays that miss the scene's bounds too");
+  app.add_flag("--kernel-ab", kernel_ab,
+               "full mode: time the general and the specialised kernel, each with and without empty-space skipping, "
+               "interleaved rep by rep, and check that all four give the same pixels");
+  app.add_flag("--no-lights", no_lights, "scene variant: remove the lights (no shadow rays)");
+  app.add_flag("--no-mirrors", no_mirrors, "scene variant: no reflective materials (no mirror rays)");
+  app.add_flag("--no-aovs", no_aovs, "full mode: render colour only, no depth and normal channels");
+  app.add_option("--spp", spp, "samples per pixel (default: the scene's)")->check(CLI::Range(1, 4096));
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
@@ -253,6 +267,14 @@ int run(int argc, char** argv) {
     if (!intersector.empty()) {
       sc.settings.intersector = intersector == "watertight" ? rtc::Intersector::Watertight : rtc::Intersector::Wald;
     }
+    if (no_lights) {
+      sc.lights.clear();
+      sc.animation.lights.clear();
+    }
+    if (no_mirrors) {
+      for (rtc::Material& m : sc.materials) m.reflective = false;
+    }
+    if (spp > 0) sc.settings.spp = spp;
     return sc;
   };
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());
@@ -455,6 +477,9 @@ int run(int argc, char** argv) {
       ro.isa = isa;
       ro.kd = kd_options;
       ro.kd_clip = kd_options.clip ? rtc::KdClip::On : rtc::KdClip::Off;
+      ro.aovs = !no_aovs;
+      ro.specialise = !no_specialise;
+      ro.skip_empty = !no_skip_empty;
       auto time_frame = [&](const rtc::RenderOptions& options, rtc::TileRayCounts& counts, rtc::Image& image) {
         rtc::Renderer renderer(scene, options);
         const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(scene.animation.frame_begin);
@@ -468,17 +493,98 @@ int run(int argc, char** argv) {
       const double ms = time_frame(ro, counts, ours);
       out["rays"] = counts.total();
       out["primary_rays"] = counts.primary;
+      out["primary_skipped"] = counts.primary_skipped;
       out["shadow_rays"] = counts.shadow;
       out["reflection_rays"] = counts.reflection;
       out["frame_ms"] = ms;
       out["mrays_per_s"] = static_cast<double>(counts.total()) / ms / 1e3;
       out["max_depth"] = fs->settings.max_depth;
+      out["spp"] = fs->settings.spp;
+      out["aovs"] = ro.aovs;
+      out["features"] = rtc::describe(fs->features);
+      out["specialise"] = ro.specialise;
+      out["skip_empty"] = ro.skip_empty;
       if (!json) {
-        std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu shadow, %llu reflection; "
-                    "depth %d)\n",
+        std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu of them skipped as empty "
+                    "space, %llu shadow, %llu reflection; depth %d); features: %s\n",
                     ms, static_cast<double>(counts.total()) / ms / 1e3,
-                    static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.shadow),
-                    static_cast<unsigned long long>(counts.reflection), fs->settings.max_depth);
+                    static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.primary_skipped),
+                    static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
+                    fs->settings.max_depth, rtc::describe(fs->features).c_str());
+      }
+      if (kernel_ab) {
+        // General and specialised kernels, without and with empty-space skipping, one frame of
+        // each in turn per repetition (so slow spells of a busy machine hit all four alike).
+        struct Config {
+          const char* name;
+          bool specialise, skip_empty;
+          std::vector<double> ms;
+          rtc::Image image;
+          rtc::TileRayCounts counts;
+        };
+        Config configs[] = {{"general", false, false, {}, {}, {}},
+                            {"specialised", true, false, {}, {}, {}},
+                            {"general_skip", false, true, {}, {}, {}},
+                            {"specialised_skip", true, true, {}, {}, {}}};
+        std::vector<std::unique_ptr<rtc::Renderer>> renderers;
+        std::vector<std::shared_ptr<const rtc::FrameState>> states;
+        for (const Config& c : configs) {
+          rtc::RenderOptions o = ro;
+          o.specialise = c.specialise;
+          o.skip_empty = c.skip_empty;
+          renderers.push_back(std::make_unique<rtc::Renderer>(scene, o));
+          states.push_back(renderers.back()->prepare(scene.animation.frame_begin));
+        }
+        for (int r = 0; r < reps; ++r) {
+          for (std::size_t k = 0; k < std::size(configs); ++k) {
+            Config& c = configs[k];
+            c.counts = rtc::TileRayCounts{};
+            c.ms.push_back(time_median_ms(1, [&] { c.image = renderers[k]->render_frame(*states[k], 32, nullptr, &c.counts); }));
+          }
+        }
+        const auto same_bits = [](const std::vector<float>& a, const std::vector<float>& b) {
+          return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+        };
+        bool same = true;
+        for (const Config& c : configs) {
+          same = same && same_bits(c.image.rgba, configs[0].image.rgba) &&
+                 same_bits(c.image.depth, configs[0].image.depth) && same_bits(c.image.normal, configs[0].image.normal);
+        }
+        // Medians of each configuration's times, and medians of its time over the general
+        // kernel's in the same repetition (paired, so a slow spell cancels out).
+        nlohmann::json ab = nlohmann::json::object(), ab_min = nlohmann::json::object(),
+                       ab_ratio = nlohmann::json::object();
+        const auto median = [](std::vector<double> v) {
+          std::sort(v.begin(), v.end());
+          return v[v.size() / 2];
+        };
+        for (const Config& c : configs) {
+          std::vector<double> ratio;
+          for (std::size_t r = 0; r < c.ms.size(); ++r) ratio.push_back(c.ms[r] / configs[0].ms[r]);
+          ab[c.name] = median(c.ms);
+          ab_min[c.name] = *std::min_element(c.ms.begin(), c.ms.end());
+          ab_ratio[c.name] = median(ratio);
+        }
+        out["kernel_ab_ms"] = ab;
+        out["kernel_ab_min_ms"] = ab_min;
+        out["kernel_ab_ratio"] = ab_ratio;
+        out["kernel_ab_same_pixels"] = same;
+        out["primary_skipped_fraction"] =
+            static_cast<double>(configs[3].counts.primary_skipped) / static_cast<double>(configs[3].counts.primary);
+        if (!json) {
+          std::printf("          kernels (median of %d interleaved; paired ratio to general): general %.1f ms, "
+                      "specialised %.1f ms (%.3f), general + skip %.1f ms (%.3f), specialised + skip %.1f ms (%.3f); "
+                      "%.1f%% of primary rays skipped; pixels %s\n",
+                      reps, ab["general"].get<double>(), ab["specialised"].get<double>(),
+                      ab_ratio["specialised"].get<double>(), ab["general_skip"].get<double>(),
+                      ab_ratio["general_skip"].get<double>(), ab["specialised_skip"].get<double>(),
+                      ab_ratio["specialised_skip"].get<double>(), 100.0 * out["primary_skipped_fraction"].get<double>(),
+                      same ? "identical" : "DIFFER");
+        }
+        if (!same) {
+          std::fprintf(stderr, "rtc-bench: error: the kernels gave different pixels\n");
+          return 4;
+        }
       }
       if (compare) {
         // The same renderer and shading code, every ray traced by Embree (4-wide packets).
