@@ -20,6 +20,7 @@
 #include "common/base/progress.h"
 #include "common/base/timer.h"
 #include "common/image/image.h"
+#include "common/render/render_kernels.h"
 #include "common/render/renderer.h"
 #include "common/render/temporal_cli.h"
 #include "common/render/temporal_render.h"
@@ -125,6 +126,12 @@ int run(int argc, char** argv) {
     rtc::Timer frame_timer;
     const double cpu_start = rtc::process_cpu_ms();
     const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(f);
+    if (f == frames.first) {
+      const rtc::RenderOptions& o = renderer.options();
+      spdlog::info("scene features: {}; tile kernel: {}", rtc::describe(state->features),
+                   rtc::render_kernels(renderer.isa())
+                       .kernel_name(*state, rtc::TileKernelOptions{o.packets, o.specialise, o.skip_empty}, o.aovs));
+    }
     const double prepare_ms = frame_timer.elapsed_ms();
     const double cpu_before = rtc::process_cpu_ms();
     const double prepare_cpu_ms = cpu_before - cpu_start;

@@ -437,9 +437,8 @@ constexpr std::array<TileFn, sizeof...(I)> tile_kernels(std::index_sequence<I...
   return {&render_tile_impl<N, kCompiled[I]>...};
 }
 
-TileFn tile_kernel(unsigned need, bool packets) {
-  static constexpr auto kPacket = tile_kernels<RTC_ISA_WIDTH>(std::make_index_sequence<std::size(kCompiled)>{});
-  static constexpr auto kSingle = tile_kernels<1>(std::make_index_sequence<std::size(kCompiled)>{});
+/// Index into kCompiled of the instantiation with the fewest features that covers `need`.
+std::size_t compiled_for(unsigned need) {
   std::size_t best = std::size(kCompiled);
   for (std::size_t k = 0; k < std::size(kCompiled); ++k) {
     if ((need & ~kCompiled[k]) == 0 &&
@@ -447,21 +446,33 @@ TileFn tile_kernel(unsigned need, bool packets) {
       best = k;
     }
   }
-  return packets ? kPacket[best] : kSingle[best];  // kAll is there, so best is found
+  return best;  // kAll is there, so one is found
+}
+
+unsigned need_of(const FrameState& fs, const TileKernelOptions& options, bool aovs) {
+  return options.specialise ? kernel_features(fs.features, aovs) : kAll;
 }
 
 void render_tile_entry(const FrameState& fs, int x0, int y0, int w, int h, const TileKernelOptions& options,
                        Image& out, TileRayCounts& counts, MarkRecorder* marks) {
+  static constexpr auto kPacket = tile_kernels<RTC_ISA_WIDTH>(std::make_index_sequence<std::size(kCompiled)>{});
+  static constexpr auto kSingle = tile_kernels<1>(std::make_index_sequence<std::size(kCompiled)>{});
   if (marks != nullptr && marks->grid_empty() && fs.lights.empty()) marks = nullptr;  // nothing to record
-  const unsigned need = options.specialise ? kernel_features(fs.features, !out.depth.empty()) : kAll;
+  const std::size_t k = compiled_for(need_of(fs, options, !out.depth.empty()));
   const FrustumCull* cull = options.skip_empty && fs.cull.active() ? &fs.cull : nullptr;
-  tile_kernel(need, options.packets)(fs, x0, y0, w, h, out, counts, marks, cull);
+  (options.packets ? kPacket[k] : kSingle[k])(fs, x0, y0, w, h, out, counts, marks, cull);
+}
+
+const char* kernel_name_entry(const FrameState& fs, const TileKernelOptions& options, bool aovs) {
+  const unsigned f = kCompiled[compiled_for(need_of(fs, options, aovs))];
+  if (f == kAll) return "general";
+  return (f & (kShadows | kReflections)) == 0 ? ((f & kAovs) != 0 ? "ray-cast+aovs" : "ray-cast") : "specialised";
 }
 
 }  // namespace
 
 const RenderKernels& render_kernels_for_isa() {
-  static const RenderKernels kernels{Isa::RTC_ISA_ENUM, &render_tile_entry};
+  static const RenderKernels kernels{Isa::RTC_ISA_ENUM, &render_tile_entry, &kernel_name_entry};
   return kernels;
 }
 

@@ -53,6 +53,9 @@ struct RenderKernels {
   Isa isa = Isa::Sse42;
   void (*render_tile)(const FrameState& state, int x0, int y0, int w, int h, const TileKernelOptions& options,
                       Image& out, TileRayCounts& counts, MarkRecorder* marks) = nullptr;
+  /// Which instantiation render_tile runs for `state` with `options` and AOV channels or not:
+  /// "general", "ray-cast" (no lights, no mirrors) or "ray-cast+aovs".
+  const char* (*kernel_name)(const FrameState& state, const TileKernelOptions& options, bool aovs) = nullptr;
 };
 
 /// Kernels for `isa`; throws rtc::Error when not compiled in or not supported by this CPU.

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -15,6 +14,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -25,6 +25,8 @@
 #include "common/base/log.h"
 #include "common/scene/scene_cli.h"
 #include "common/base/timer.h"
+#include "common/image/image.h"
+#include "common/render/render_kernels.h"
 #include "common/render/renderer.h"
 #include "common/render/shading.h"
 #include "common/scene/load.h"
@@ -251,6 +253,9 @@ int run(int argc, char** argv) {
   app.add_flag("--kernel-ab", kernel_ab,
                "full mode: time the general and the specialised kernel, each with and without empty-space skipping, "
                "interleaved rep by rep, and check that all four give the same pixels");
+  int ab_reps = 0;
+  app.add_option("--ab-reps", ab_reps, "with --kernel-ab: repetitions of the four (default: --reps)")
+      ->check(CLI::Range(1, 1000));
   app.add_flag("--no-lights", no_lights, "scene variant: remove the lights (no shadow rays)");
   app.add_flag("--no-mirrors", no_mirrors, "scene variant: no reflective materials (no mirror rays)");
   app.add_flag("--no-aovs", no_aovs, "full mode: render colour only, no depth and normal channels");
@@ -258,6 +263,7 @@ int run(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
+  if (ab_reps == 0) ab_reps = reps;
 
   std::filesystem::path path(scene_path);
   if (!scene_path.empty() && std::filesystem::is_directory(path)) path /= "view.json";
@@ -490,31 +496,11 @@ int run(int argc, char** argv) {
       };
       rtc::TileRayCounts counts;
       rtc::Image ours;
-      const double ms = time_frame(ro, counts, ours);
-      out["rays"] = counts.total();
-      out["primary_rays"] = counts.primary;
-      out["primary_skipped"] = counts.primary_skipped;
-      out["shadow_rays"] = counts.shadow;
-      out["reflection_rays"] = counts.reflection;
-      out["frame_ms"] = ms;
-      out["mrays_per_s"] = static_cast<double>(counts.total()) / ms / 1e3;
-      out["max_depth"] = fs->settings.max_depth;
-      out["spp"] = fs->settings.spp;
-      out["aovs"] = ro.aovs;
-      out["features"] = rtc::describe(fs->features);
-      out["specialise"] = ro.specialise;
-      out["skip_empty"] = ro.skip_empty;
-      if (!json) {
-        std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu of them skipped as empty "
-                    "space, %llu shadow, %llu reflection; depth %d); features: %s\n",
-                    ms, static_cast<double>(counts.total()) / ms / 1e3,
-                    static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.primary_skipped),
-                    static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
-                    fs->settings.max_depth, rtc::describe(fs->features).c_str());
-      }
+      double ms = 0.0;
       if (kernel_ab) {
         // General and specialised kernels, without and with empty-space skipping, one frame of
-        // each in turn per repetition (so slow spells of a busy machine hit all four alike).
+        // each in turn per repetition (so slow spells of a busy machine hit all four alike), all
+        // on one prepared frame (the renderer's trees), in 32 x 32 tiles as render_frame does.
         struct Config {
           const char* name;
           bool specialise, skip_empty;
@@ -526,30 +512,32 @@ int run(int argc, char** argv) {
                             {"specialised", true, false, {}, {}, {}},
                             {"general_skip", false, true, {}, {}, {}},
                             {"specialised_skip", true, true, {}, {}, {}}};
-        std::vector<std::unique_ptr<rtc::Renderer>> renderers;
-        std::vector<std::shared_ptr<const rtc::FrameState>> states;
-        for (const Config& c : configs) {
-          rtc::RenderOptions o = ro;
-          o.specialise = c.specialise;
-          o.skip_empty = c.skip_empty;
-          renderers.push_back(std::make_unique<rtc::Renderer>(scene, o));
-          states.push_back(renderers.back()->prepare(scene.animation.frame_begin));
-        }
-        for (int r = 0; r < reps; ++r) {
-          for (std::size_t k = 0; k < std::size(configs); ++k) {
-            Config& c = configs[k];
-            c.counts = rtc::TileRayCounts{};
-            c.ms.push_back(time_median_ms(1, [&] { c.image = renderers[k]->render_frame(*states[k], 32, nullptr, &c.counts); }));
-          }
-        }
-        const auto same_bits = [](const std::vector<float>& a, const std::vector<float>& b) {
-          return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+        rtc::Renderer renderer(scene, ro);
+        const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(scene.animation.frame_begin);
+        const rtc::RenderKernels& tile_kernels = rtc::render_kernels(isa);
+        const auto render_with = [&](Config& c) {
+          const rtc::FrameState& st = *state;
+          constexpr int kTileSize = 32;
+          const int tiles_x = (st.width + kTileSize - 1) / kTileSize, tiles_y = (st.height + kTileSize - 1) / kTileSize;
+          rtc::Image frame(st.width, st.height, ro.aovs, ro.aovs);
+          tbb::enumerable_thread_specific<rtc::TileRayCounts> thread_counts;
+          tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
+            const int x0 = (t % tiles_x) * kTileSize, y0 = (t / tiles_x) * kTileSize;
+            const int w = std::min(kTileSize, st.width - x0), h = std::min(kTileSize, st.height - y0);
+            rtc::Image tile(w, h, ro.aovs, ro.aovs);
+            tile_kernels.render_tile(st, x0, y0, w, h, rtc::TileKernelOptions{ro.packets, c.specialise, c.skip_empty},
+                                     tile, thread_counts.local(), nullptr);
+            frame.blit(tile, x0, y0);
+          });
+          c.counts = rtc::TileRayCounts{};
+          for (const rtc::TileRayCounts& tc : thread_counts) c.counts += tc;
+          c.image = std::move(frame);
         };
-        bool same = true;
-        for (const Config& c : configs) {
-          same = same && same_bits(c.image.rgba, configs[0].image.rgba) &&
-                 same_bits(c.image.depth, configs[0].image.depth) && same_bits(c.image.normal, configs[0].image.normal);
+        for (int r = 0; r < ab_reps; ++r) {
+          for (Config& c : configs) c.ms.push_back(time_median_ms(1, [&] { render_with(c); }));
         }
+        bool same = true;
+        for (const Config& c : configs) same = same && rtc::image_hash(c.image) == rtc::image_hash(configs[0].image);
         // Medians of each configuration's times, and medians of its time over the general
         // kernel's in the same repetition (paired, so a slow spell cancels out).
         nlohmann::json ab = nlohmann::json::object(), ab_min = nlohmann::json::object(),
@@ -565,6 +553,7 @@ int run(int argc, char** argv) {
           ab_min[c.name] = *std::min_element(c.ms.begin(), c.ms.end());
           ab_ratio[c.name] = median(ratio);
         }
+        out["kernel_ab_reps"] = ab_reps;
         out["kernel_ab_ms"] = ab;
         out["kernel_ab_min_ms"] = ab_min;
         out["kernel_ab_ratio"] = ab_ratio;
@@ -572,10 +561,10 @@ int run(int argc, char** argv) {
         out["primary_skipped_fraction"] =
             static_cast<double>(configs[3].counts.primary_skipped) / static_cast<double>(configs[3].counts.primary);
         if (!json) {
-          std::printf("          kernels (median of %d interleaved; paired ratio to general): general %.1f ms, "
+          std::printf("  full    kernels (median of %d interleaved; paired ratio to general): general %.1f ms, "
                       "specialised %.1f ms (%.3f), general + skip %.1f ms (%.3f), specialised + skip %.1f ms (%.3f); "
                       "%.1f%% of primary rays skipped; pixels %s\n",
-                      reps, ab["general"].get<double>(), ab["specialised"].get<double>(),
+                      ab_reps, ab["general"].get<double>(), ab["specialised"].get<double>(),
                       ab_ratio["specialised"].get<double>(), ab["general_skip"].get<double>(),
                       ab_ratio["general_skip"].get<double>(), ab["specialised_skip"].get<double>(),
                       ab_ratio["specialised_skip"].get<double>(), 100.0 * out["primary_skipped_fraction"].get<double>(),
@@ -585,6 +574,36 @@ int run(int argc, char** argv) {
           std::fprintf(stderr, "rtc-bench: error: the kernels gave different pixels\n");
           return 4;
         }
+        // The figures below are the default configuration's (specialised, skipping).
+        const Config& chosen = configs[(ro.specialise ? 1 : 0) + (ro.skip_empty ? 2 : 0)];
+        counts = chosen.counts;
+        ours = chosen.image;
+        ms = ab[chosen.name].get<double>();
+      } else {
+        ms = time_frame(ro, counts, ours);
+      }
+      out["rays"] = counts.total();
+      out["primary_rays"] = counts.primary;
+      out["primary_skipped"] = counts.primary_skipped;
+      out["shadow_rays"] = counts.shadow;
+      out["reflection_rays"] = counts.reflection;
+      out["frame_ms"] = ms;
+      out["mrays_per_s"] = static_cast<double>(counts.total()) / ms / 1e3;
+      out["max_depth"] = fs->settings.max_depth;
+      out["spp"] = fs->settings.spp;
+      out["aovs"] = ro.aovs;
+      out["features"] = rtc::describe(fs->features);
+      out["kernel"] = rtc::render_kernels(isa).kernel_name(
+          *fs, rtc::TileKernelOptions{ro.packets, ro.specialise, ro.skip_empty}, ro.aovs);
+      out["specialise"] = ro.specialise;
+      out["skip_empty"] = ro.skip_empty;
+      if (!json) {
+        std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu of them skipped as empty "
+                    "space, %llu shadow, %llu reflection; depth %d); features: %s; kernel: %s\n",
+                    ms, static_cast<double>(counts.total()) / ms / 1e3,
+                    static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.primary_skipped),
+                    static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
+                    fs->settings.max_depth, rtc::describe(fs->features).c_str(), out["kernel"].get<std::string>().c_str());
       }
       if (compare) {
         // The same renderer and shading code, every ray traced by Embree (4-wide packets).

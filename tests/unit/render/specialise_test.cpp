@@ -143,6 +143,19 @@ TEST(Specialise, FeaturesFoundOncePerFrame) {
   EXPECT_FALSE(d.background || d.ambient || d.single_sample);
   EXPECT_EQ(describe(features(without_lights(without_mirrors(dark)))), "highlights");
 
+  // The kernel each gets.
+  const auto kernel = [](const Scene& s, bool specialise, bool aovs) {
+    const auto fs = build_frame_state(s, 0, s.settings, KdBuildOptions{});
+    return std::string(render_kernels(best_isa()).kernel_name(*fs, TileKernelOptions{true, specialise, true}, aovs));
+  };
+  const Scene neither = without_lights(without_mirrors(base));
+  EXPECT_EQ(kernel(neither, true, true), "ray-cast+aovs");
+  EXPECT_EQ(kernel(neither, true, false), "ray-cast");
+  EXPECT_EQ(kernel(neither, false, false), "general");
+  EXPECT_EQ(kernel(without_lights(shallow), true, true), "ray-cast+aovs");
+  EXPECT_EQ(kernel(base, true, true), "general");
+  EXPECT_EQ(kernel(without_lights(base), true, false), "general");
+
   // A frame that reuses the last one's geometry (the camera moved) is analysed again.
   Scene moving = without_mirrors(base);
   moving.animation.meshes.clear();
