@@ -423,13 +423,15 @@ using TileFn = void (*)(const FrameState&, int, int, int, int, Image&, TileRayCo
                         const FrustumCull*);
 
 // The instantiations compiled; a frame gets the one with the fewest features that covers its own.
-// Each costs compile time (this file is compiled once per ISA), so only those that measured
-// faster than the general kernel are here. Measured per feature (1 thread, CPU time, the
-// interleaved runs of rtc-bench --kernel-ab; tests/bench/results/specialise.md): the ray-cast
-// kernel (no lights, no mirrors) 0.63-0.66 of the general one's time without depth and normal
-// channels, 0.94-0.98 with them; without AOVs alone 0.96-0.99 with lights and mirrors; without
-// mirrors, without lights or without highlights alone 0.97-1.00, within the machine's noise.
-// kAll & ~kAovs would cost another eighth of the file's compile time, so it is left out.
+// Each costs compile time (this file is compiled once per ISA): these three per width add ~10%
+// to the file's (14-15 s of CPU for the three ISAs before, 15-16 s after); all twelve distinct
+// masks took ~2.3x. Only what measured faster than the general kernel is here (1 thread, CPU
+// time, rtc-bench --kernel-ab's paired runs; tests/bench/results/specialise.md): the ray-cast
+// kernel (no lights, no mirrors) takes 0.61-0.63 of the general one's time without depth and
+// normal channels and 0.90-0.93 with them. Left out: lights and mirrors without AOVs, 0.96-0.99
+// (another ~1.5 s of compile time, for renders without depth and normal only); no mirrors, no
+// lights or no highlights alone, 0.97-1.00, within this machine's noise (the same kernel timed
+// against itself drifts by up to 3%).
 constexpr unsigned kCompiled[] = {0u, kAovs, kAll};
 
 template <int N, std::size_t... I>
