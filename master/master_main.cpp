@@ -38,7 +38,8 @@ int run(int argc, char** argv) {
       ->excludes(frames_opt);
   app.add_option("--out", o.out_pattern,
                  "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
-  app.add_option("--tile", o.tile_size, "tile size in pixels")->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--tile", o.tile_size, "tile size in pixels (default 32, 16 with temporal coherence)")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--wire", wire_text, "pixel format on the wire: rgba8 (sRGB, 4 B/px), half (8 B/px), float (16 B/px); "
                                       "default: rgba8; half (float with --exr-float) for .exr; float for .tif");
   app.add_option("--compress", compress_text, "tile compression: none, lz4, zstd")->capture_default_str();
@@ -131,6 +132,10 @@ int run(int argc, char** argv) {
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
+  // With temporal coherence the tile is the unit retraced: finer tiles retrace less.
+  if (app.count("--tile") == 0 && o.multiple_frames && rtc::temporal_for(scene, o.temporal)) {
+    o.tile_size = rtc::kTemporalTileSize;
+  }
   if (!o.out_pattern.empty()) {
     const std::filesystem::path first_out(rtc::expand_frame_pattern(o.out_pattern, frames.first, o.multiple_frames));
     const std::filesystem::path out_dir = first_out.parent_path().empty() ? "." : first_out.parent_path();

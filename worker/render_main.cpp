@@ -38,14 +38,15 @@ int run(int argc, char** argv) {
   std::string isa_text, log_level = "info", kd_clip = "auto", temporal_text = "auto";
   int mark_cells = rtc::kDefaultMarkCells;
   bool exr_float = false, single_rays = false, no_depth = false, no_normal = false, no_specialise = false,
-       no_skip_empty = false;
+       no_skip_empty = false, rebuild_moving = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
                  "output file pattern; #### is the zero-padded frame number; the extension picks the "
                  "format (.exr, .png) (default: out/<scene>_####.png)");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
-  app.add_option("--tile", tile, "tile size in pixels (does not change a pixel)")->check(CLI::Range(1, 4096));
+  app.add_option("--tile", tile, "tile size in pixels (does not change a pixel; default 32, 16 with temporal coherence)")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
   rtc::add_kd_clip_option(app, kd_clip);
   rtc::add_temporal_options(app, temporal_text, mark_cells);
@@ -54,6 +55,9 @@ int run(int argc, char** argv) {
                "the general tile kernel instead of the one specialised to the scene's features (same pixels)");
   app.add_flag("--no-skip-empty", no_skip_empty,
                "trace primary rays that miss the scene's bounds instead of skipping them (same pixels)");
+  app.add_flag("--rebuild-moving-trees", rebuild_moving,
+               "rebuild a moving mesh's kd-tree in world space whenever it moves instead of building it once in "
+               "object space and transforming the rays (for timing; pixels differ only by float rounding)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
@@ -100,6 +104,7 @@ int run(int argc, char** argv) {
   options.aovs = !(no_depth && no_normal);
   options.specialise = !no_specialise;
   options.skip_empty = !no_skip_empty;
+  options.instance_moving_meshes = !rebuild_moving;
   rtc::Renderer renderer(std::move(scene), options);
   spdlog::info("kernels: {}, {}, {} threads", rtc::isa_name(renderer.isa()),
                single_rays ? std::string("single rays") : rtc::isa_packet_description(renderer.isa()),
@@ -112,13 +117,15 @@ int run(int argc, char** argv) {
   const bool tty = isatty(STDERR_FILENO) != 0;
   std::unique_ptr<rtc::TemporalFrames> temporal;
   if (rtc::temporal_for(renderer.scene(), rtc::parse_temporal_mode(temporal_text)) && multiple) {
+    if (app.count("--tile") == 0) tile = rtc::kTemporalTileSize;  // the unit retraced: finer is cheaper
     temporal = std::make_unique<rtc::TemporalFrames>(renderer, tile, mark_cells);
     const rtc::MarkGrid& g = temporal->grid();
     if (g.empty()) {
-      spdlog::info("temporal coherence on: no mesh moves (frames differ only where lights move)");
+      spdlog::info("temporal coherence on: no mesh moves (frames differ only where lights move); tiles of {} pixels", tile);
     } else {
       spdlog::info("temporal coherence on: {}x{}x{} voxels over [{:.4g} {:.4g} {:.4g}]-[{:.4g} {:.4g} {:.4g}], where meshes "
-                   "move", g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z);
+                   "move; tiles of {} pixels",
+                   g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z, tile);
     }
   }
   double last_full_ms = 0;

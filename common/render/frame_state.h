@@ -12,11 +12,22 @@
 #include "common/accel/kd_tree.h"
 #include "common/accel/trace.h"
 #include "common/base/error.h"
+#include "common/math/aabb.h"
 #include "common/math/camera.h"
 #include "common/math/frustum_cull.h"
 #include "common/scene/scene.h"
 
 namespace rtc {
+
+/// The affine map taking world-space rays into a kd-tree's space: point p -> m p + t, direction
+/// d -> m d, so a ray's parameter t (and its [t_min, t_max]) is the same in both spaces and
+/// hits from trees in different spaces compare directly.
+struct TreeSpace {
+  bool identity = true;       ///< world space: rays go in as they are
+  glm::mat3 m{1.0f};          ///< object_from_world's linear part
+  glm::vec3 t{0.0f};          ///< object_from_world's translation
+  Aabb world_bounds;          ///< a world-space box around everything the tree holds (padded)
+};
 
 /// World-space triangles of one pose of the meshes, and their kd-trees. Immutable; shared by
 /// every frame in which no mesh moved. Shading data (normals, materials) are kept apart from
@@ -35,6 +46,12 @@ struct FrameGeometry {
   /// the triangle's index in the arrays above as its id, whichever tree holds it; a ray goes
   /// through all of them (closest hit: the nearest, equal t to the higher id).
   std::vector<std::shared_ptr<const KdTree>> trees;
+  /// Empty, or one per tree: where a tree lives. A moving mesh's tree may be built once over
+  /// its object-space vertices and shared by every frame (RenderOptions::instance_moving_meshes;
+  /// Wald, Benthin, Slusallek 2003): rays are taken into its space for the traversal instead
+  /// of the tree being rebuilt whenever the mesh moves. Trees without an entry, or with an
+  /// identity one, are in world space.
+  std::vector<TreeSpace> spaces;
   /// trees[0] holds only meshes that never move (moving_meshes): a ray it blocks is blocked in
   /// every frame of the animation, so temporal coherence need not mark that shadow ray.
   bool first_tree_static = false;
@@ -42,9 +59,13 @@ struct FrameGeometry {
   /// The tree when there is exactly one (static scenes, build_frame_state); RTC_CHECK fails
   /// otherwise. For tools and tests that trace a tree directly.
   [[nodiscard]] const KdTree& single_tree() const {
-    RTC_CHECK(trees.size() == 1 && trees[0] != nullptr,
-              "FrameGeometry::single_tree: the geometry has several trees (or none)");
+    RTC_CHECK(trees.size() == 1 && trees[0] != nullptr && space(0) == nullptr,
+              "FrameGeometry::single_tree: the geometry has several trees (or none, or one in object space)");
     return *trees[0];
+  }
+  /// Tree i's space, null when it is in world space.
+  [[nodiscard]] const TreeSpace* space(std::size_t i) const {
+    return i < spaces.size() && !spaces[i].identity ? &spaces[i] : nullptr;
   }
 };
 

@@ -39,6 +39,23 @@ struct Lanes {
   glm::vec3 color[N];   // radiance accumulated, already weighted
 };
 
+/// The packet taken into a tree's space (FrameGeometry::spaces): the same t along every ray.
+/// Multiplies and adds in a fixed order (no FMA: -ffp-contract=off), so every packet width
+/// gives the same bits.
+template <int N>
+RayPacket<N> to_space(const RayPacket<N>& p, const TreeSpace& s) {
+  RayPacket<N> q;
+  for (int r = 0; r < 3; ++r) {
+    q.org[r] = ((vfloat<N>(s.m[0][r]) * p.org[0] + vfloat<N>(s.m[1][r]) * p.org[1]) +
+                vfloat<N>(s.m[2][r]) * p.org[2]) +
+               vfloat<N>(s.t[r]);
+    q.dir[r] = (vfloat<N>(s.m[0][r]) * p.dir[0] + vfloat<N>(s.m[1][r]) * p.dir[1]) + vfloat<N>(s.m[2][r]) * p.dir[2];
+  }
+  q.t_min = p.t_min;
+  q.t_max = p.t_max;
+  return q;
+}
+
 /// Closest hits of the lanes in `lanes_mask`, from rtc's kd-trees or the external tracer.
 template <int N>
 void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, RayHit (&out)[N]) {
@@ -63,7 +80,11 @@ void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_
   // with a nearer triangle or one at the same t with a higher id, so the result is the bits of
   // one tree over all triangles (kd_traverse.h, intersect).
   const vbool<N> active = vbool<N>::from_bits(lanes_mask);
-  for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) intersect<N>(*tree, p, active, hit);
+  const FrameGeometry& g = *fs.geometry;
+  for (std::size_t k = 0; k < g.trees.size(); ++k) {
+    const TreeSpace* space = g.space(k);
+    intersect<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), active, hit);
+  }
   float t[N], beta[N], gamma[N];
   std::int32_t prim[N];
   hit.t.store(t);
@@ -97,13 +118,13 @@ unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned 
   // Any tree's hit occludes: a lane leaves the query once one tree has blocked it.
   const RayPacket<N> p = rays.packet();
   unsigned blocked = 0;
-  for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) {
+  const FrameGeometry& g = *fs.geometry;
+  for (std::size_t k = 0; k < g.trees.size(); ++k) {
     const unsigned open = lanes_mask & ~blocked;
     if (open == 0) break;
-    blocked |= bits(occluded<N>(*tree, p, vbool<N>::from_bits(open)));
-    if (by_static != nullptr && fs.geometry->first_tree_static && tree == fs.geometry->trees.front()) {
-      *by_static = blocked;
-    }
+    const TreeSpace* space = g.space(k);
+    blocked |= bits(occluded<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), vbool<N>::from_bits(open)));
+    if (by_static != nullptr && g.first_tree_static && k == 0) *by_static = blocked;
   }
   return blocked;
 }

@@ -3,7 +3,10 @@
 #include "common/render/renderer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <limits>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -135,8 +138,11 @@ void reflatten(const Scene& scene, const FramePose& pose, const FrameGeometry& p
 
 Aabb frame_bounds(const FrameGeometry& geometry) {
   Aabb box;
-  for (const std::shared_ptr<const KdTree>& tree : geometry.trees) {
-    if (tree != nullptr && !tree->empty()) box.extend(tree->bounds());
+  for (std::size_t k = 0; k < geometry.trees.size(); ++k) {
+    const std::shared_ptr<const KdTree>& tree = geometry.trees[k];
+    if (tree == nullptr || tree->empty()) continue;
+    const TreeSpace* space = geometry.space(k);
+    box.extend(space != nullptr ? space->world_bounds : tree->bounds());
   }
   return box;
 }
@@ -181,6 +187,45 @@ std::string describe(const FrameFeatures& f) {
 }
 
 namespace {
+
+// Where a tree over a mesh's object-space vertices (bounds `object_box`) lies when the mesh is
+// placed by `world_from_object`: the inverse map for the rays, and a world box around the
+// object box's corners, padded by 1e-5 of the magnitudes involved (far beyond the rounding of
+// the transforms; FrustumCull adds its own margin). Empty when the map has no finite inverse
+// (a mesh scaled to nothing): then the caller builds a world-space tree.
+std::optional<TreeSpace> tree_space_for(const glm::mat4& world_from_object, const Aabb& object_box) {
+  const glm::dmat4 world(world_from_object);
+  const double det = glm::determinant(glm::dmat3(world));
+  if (!std::isfinite(det) || det == 0.0) return std::nullopt;
+  const glm::dmat4 inv = glm::inverse(world);
+  TreeSpace space;
+  space.identity = false;
+  space.m = glm::mat3(glm::dmat3(inv));
+  space.t = glm::vec3(glm::dvec3(inv[3]));
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) {
+      if (!std::isfinite(space.m[c][r])) return std::nullopt;
+    }
+    if (!std::isfinite(space.t[c])) return std::nullopt;
+  }
+  if (object_box.empty()) return space;
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  double magnitude = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p((c & 1) ? object_box.hi.x : object_box.lo.x, (c & 2) ? object_box.hi.y : object_box.lo.y,
+                       (c & 4) ? object_box.hi.z : object_box.lo.z);
+    const glm::dvec3 w(world * glm::dvec4(p, 1.0));
+    lo = glm::min(lo, w);
+    hi = glm::max(hi, w);
+    magnitude = std::max({magnitude, glm::length(p), glm::length(w)});
+  }
+  const double pad = 1e-5 * (magnitude + glm::length(glm::dvec3(world[3])));
+  const auto down = [](double v) { return std::nextafter(static_cast<float>(v), -std::numeric_limits<float>::infinity()); };
+  const auto up = [](double v) { return std::nextafter(static_cast<float>(v), std::numeric_limits<float>::infinity()); };
+  space.world_bounds.lo = glm::vec3(down(lo.x - pad), down(lo.y - pad), down(lo.z - pad));
+  space.world_bounds.hi = glm::vec3(up(hi.x + pad), up(hi.y + pad), up(hi.z + pad));
+  return space;
+}
 
 // Everything of a frame but its geometry.
 std::shared_ptr<FrameState> frame_state_at(const Scene& scene, const FramePose& pose, const RenderSettings& settings) {
@@ -318,14 +363,40 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
     geometry->first_tree_static = true;
     KdBuildOptions moving_kd = kd;
     moving_kd.clip = kd_clip_for(options_.kd_clip, true);
+    if (options_.instance_moving_meshes) {
+      geometry->spaces.resize(1);  // the static tree: world space
+      object_trees_.resize(scene_.meshes.size());
+    }
     std::size_t t_base = 0, moving_index = 0;
     for (std::size_t mi = 0; mi < scene_.meshes.size(); ++mi) {
-      const std::size_t count = scene_.meshes[mi].triangles.size();
+      const Mesh& mesh = scene_.meshes[mi];
+      const std::size_t count = mesh.triangles.size();
       if (moving_[mi]) {
         ++moving_index;  // this mesh's tree is trees[moving_index], in every frame
-        if (last_ && pose.world_from_object[mi] == last_world_from_object_[mi]) {
+        std::optional<TreeSpace> space;
+        if (options_.instance_moving_meshes) {
+          if (object_trees_[mi] == nullptr) {
+            // Built once over the file's vertices, so clipped like the static tree.
+            KdBuildOptions object_kd = kd;
+            object_kd.clip = kd_clip_for(options_.kd_clip, false);
+            std::vector<std::uint32_t> ids(count);
+            for (std::size_t i = 0; i < count; ++i) ids[i] = static_cast<std::uint32_t>(t_base + i);
+            object_trees_[mi] = std::make_shared<const KdTree>(KdTree::build(mesh.positions, mesh.triangles, object_kd, ids));
+            ++built;
+            spdlog::debug("frame {}: mesh {} ({}) object-space tree, built once: {}", frame, mi, mesh.name,
+                          object_trees_[mi]->stats().to_string());
+          }
+          space = tree_space_for(pose.world_from_object[mi], object_trees_[mi]->bounds());
+        }
+        if (space) {
+          geometry->trees.push_back(object_trees_[mi]);
+          geometry->spaces.push_back(*space);
+        } else if (last_ && pose.world_from_object[mi] == last_world_from_object_[mi] &&
+                   last_->geometry->space(moving_index) == nullptr) {
           geometry->trees.push_back(last_->geometry->trees.at(moving_index));
+          if (!geometry->spaces.empty()) geometry->spaces.emplace_back();
         } else {
+          if (!geometry->spaces.empty()) geometry->spaces.emplace_back();
           geometry->trees.push_back(build_range_tree(g, t_base, count, moving_kd));
           ++built;
           spdlog::debug("frame {}: mesh {} ({}) tree: {}", frame, mi, scene_.meshes[mi].name,

@@ -19,7 +19,8 @@ namespace rtc {
 class ProgressBar;
 class MarkRecorder;
 
-/// How to render; none of these change a pixel except `settings` (the time/accuracy trade).
+/// How to render; none of these change a pixel except `settings` (the time/accuracy trade) and
+/// `instance_moving_meshes` (float rounding on moving meshes).
 struct RenderOptions {
   std::optional<RenderSettings> settings;  ///< empty: the scene's own
   std::optional<Isa> isa;                  ///< empty: best_isa()
@@ -31,6 +32,13 @@ struct RenderOptions {
   /// meshes, rebuilt whenever any of them moves. The same pixels either way (tests compare
   /// them); false is for those tests and for timing the difference.
   bool split_static_trees = true;
+  /// With split_static_trees: each moving mesh's tree is built once over its object-space
+  /// vertices and rays are taken into that space (FrameGeometry::spaces), so a mesh that moves
+  /// costs no rebuild (Wald, Benthin, Slusallek 2003). false: its tree is rebuilt in world space
+  /// whenever it moves, giving the bits of one tree over everything. The two differ only by the
+  /// float rounding of the ray transform, i.e. in a few edge pixels (tests bound it); every
+  /// process rendering one animation must use the same value (workers use the default).
+  bool instance_moving_meshes = true;
   bool aovs = true;                        ///< fill Image::depth and Image::normal
   /// Tile kernels specialised to the frame's features (FrameState::features); false: the general
   /// kernel, which tests for every feature as it goes. The same pixels either way.
@@ -85,6 +93,9 @@ class Renderer {
   std::vector<bool> moving_;                       ///< per mesh: moving_meshes(scene_)
   std::shared_ptr<const KdTree> static_tree_;      ///< split_static_trees: built by the first prepare()
   std::vector<glm::mat4> static_world_from_object_;  ///< the placement static_tree_ was built at
+  /// instance_moving_meshes: per mesh, its object-space tree (null for static meshes), built by
+  /// the first prepare()
+  std::vector<std::shared_ptr<const KdTree>> object_trees_;
 };
 
 /// KdBuildOptions::clip under `clip` for a tree built once (`rebuilt_per_frame` false: Auto
@@ -98,7 +109,8 @@ class Renderer {
 [[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
 
 /// The box every primary ray that can hit anything passes through: the union of the bounds of
-/// the frame's kd-trees (KdTree::bounds(); empty when there is nothing to hit).
+/// the frame's kd-trees (KdTree::bounds(), or TreeSpace::world_bounds for a tree in object
+/// space; empty when there is nothing to hit).
 [[nodiscard]] Aabb frame_bounds(const FrameGeometry& geometry);
 
 /// Fills fs.features and fs.cull from the rest of `fs` (geometry, camera, lights, materials,

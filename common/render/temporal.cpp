@@ -17,6 +17,10 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// them marked, fewer tiles retraced) for more boxes to mark.
 constexpr double kPiecesPerCell = 1;
 
+/// How much (in cells) the union of two groups may be wider than the wider of them for the two
+/// to be marked as one (MarkRecorder::add_tube, add_sweep).
+constexpr double kMergeCells = 0.25;
+
 struct DBox {
   glm::dvec3 lo{kInf};
   glm::dvec3 hi{-kInf};
@@ -230,8 +234,56 @@ void MarkRecorder::mark_box(int list, const glm::dvec3& lo, const glm::dvec3& hi
 
 void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
   if (grid_.empty()) return;
-  // Each ray clipped to the grid: [t0, t1]. At a common t every ray is in box(org) + t box(dir),
-  // a small box for a coherent packet however its rays' lengths differ.
+  // At a common t every ray is in box(org) + t box(dir), a small box for a coherent packet
+  // however its rays' lengths differ. First the whole group at once: the tube's bounds are
+  // linear in t (t >= 0), so the part of [0, longest t_end] where it meets the grid takes six
+  // divisions, not six per ray.
+  {
+    DBox o_box, d_box;
+    double t_far = 0.0;
+    bool any = false;
+    for (int i = 0; i < n; ++i) {
+      const glm::dvec3 o(org[i]), d(dir[i]);
+      if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || std::isnan(t_end[i])) continue;  // hits nothing, ever
+      if (d == glm::dvec3(0.0)) continue;
+      any = true;
+      o_box.extend(o);
+      d_box.extend(d);
+      // A hit exactly where a moving mesh now starts must still count: reach a little past it.
+      t_far = std::max(t_far, std::isfinite(t_end[i]) ? static_cast<double>(t_end[i]) * (1.0 + 1e-6) + 1e-30 : kInf);
+    }
+    if (!any) return;
+    double t_lo = 0.0, t_hi = t_far;
+    for (int k = 0; k < 3 && t_lo <= t_hi; ++k) {
+      // lo(t) = o_lo + d_lo t <= grid.hi and hi(t) = o_hi + d_hi t >= grid.lo, each a half-line.
+      const double lo_a = o_box.lo[k] - pad_, lo_d = d_box.lo[k];
+      const double hi_a = o_box.hi[k] + pad_, hi_d = d_box.hi[k];
+      if (lo_d == 0.0) {
+        if (lo_a > grid_.hi[k]) return;
+      } else if (lo_d > 0.0) {
+        t_hi = std::min(t_hi, (grid_.hi[k] - lo_a) / lo_d);
+      } else {
+        t_lo = std::max(t_lo, (grid_.hi[k] - lo_a) / lo_d);
+      }
+      if (hi_d == 0.0) {
+        if (hi_a < grid_.lo[k]) return;
+      } else if (hi_d > 0.0) {
+        t_lo = std::max(t_lo, (grid_.lo[k] - hi_a) / hi_d);
+      } else {
+        t_hi = std::min(t_hi, (grid_.lo[k] - hi_a) / hi_d);
+      }
+    }
+    if (!(t_lo <= t_hi)) return;  // the whole group passes beside the region where anything moves
+    if (std::isfinite(t_hi)) {
+      // Widen a hair for the rounding of the divisions above.
+      t_lo = std::max(0.0, t_lo - 1e-9 * (1.0 + t_lo));
+      t_hi = std::min(t_far, t_hi + 1e-9 * (1.0 + t_hi));
+      add_tube(o_box.lo, o_box.hi, d_box.lo, d_box.hi, t_lo, t_hi);
+      return;
+    }
+    // A tube that widens in every axis (rays in several octants, unbounded) never leaves the
+    // grid as a box: clip the rays one by one instead.
+  }
   DBox o_box, d_box;
   double t_lo = kInf, t_hi = -kInf;
   for (int i = 0; i < n; ++i) {
@@ -259,6 +311,88 @@ void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir,
     t_hi = std::max(t_hi, t1);
   }
   if (o_box.empty()) return;
+  add_tube(o_box.lo, o_box.hi, d_box.lo, d_box.hi, t_lo, t_hi);
+}
+
+namespace {
+
+/// Whether the union of two boxes is at most `slack` (per axis) wider than the wider of them.
+bool unites(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo, const glm::dvec3& b_hi,
+            const glm::dvec3& slack) {
+  for (int k = 0; k < 3; ++k) {
+    const double merged = std::max(a_hi[k], b_hi[k]) - std::min(a_lo[k], b_lo[k]);
+    if (merged > std::max(a_hi[k] - a_lo[k], b_hi[k] - b_lo[k]) + slack[k]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void MarkRecorder::add_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, const glm::dvec3& d_lo,
+                            const glm::dvec3& d_hi, double t_lo, double t_hi) {
+  // Neighbouring packets' tubes run side by side through the same voxels: the union of two
+  // whose boxes at every t differ by less than kMergeCells of a cell, and whose ends are as
+  // close, is marked once (a tube holds every ray of both, so the marks stay conservative).
+  Tube& p = tube_;
+  if (p.live) {
+    double rate = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      rate = std::max(rate, std::max({std::abs(d_lo[k]), std::abs(d_hi[k]), std::abs(p.d_lo[k]), std::abs(p.d_hi[k])}) *
+                                inv_cell_[k]);
+    }
+    const double t_end = std::max(t_hi, p.t_hi);
+    // Boxes at the far end (the widest): origin box plus t_end times the direction box.
+    if (std::abs(t_hi - p.t_hi) * rate <= kMergeCells && std::abs(t_lo - p.t_lo) * rate <= kMergeCells &&
+        unites(o_lo + d_lo * t_end, o_hi + d_hi * t_end, p.o_lo + p.d_lo * t_end, p.o_hi + p.d_hi * t_end,
+               cell_ * kMergeCells) &&
+        unites(o_lo, o_hi, p.o_lo, p.o_hi, cell_ * kMergeCells)) {
+      p.o_lo = glm::min(p.o_lo, o_lo);
+      p.o_hi = glm::max(p.o_hi, o_hi);
+      p.d_lo = glm::min(p.d_lo, d_lo);
+      p.d_hi = glm::max(p.d_hi, d_hi);
+      p.t_lo = std::min(p.t_lo, t_lo);
+      p.t_hi = t_end;
+      return;
+    }
+    mark_tube(p.o_lo, p.o_hi, p.d_lo, p.d_hi, p.t_lo, p.t_hi);
+  }
+  p = Tube{true, o_lo, o_hi, d_lo, d_hi, t_lo, t_hi};
+}
+
+void MarkRecorder::add_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo,
+                             const glm::dvec3& b_hi) {
+  // The same for shadow sweeps towards one light (the far ends nearly one point): a few kept
+  // open at once, one per light in turn.
+  for (Sweep& w : sweeps_) {
+    if (w.live && unites(a_lo, a_hi, w.a_lo, w.a_hi, cell_ * kMergeCells) &&
+        unites(b_lo, b_hi, w.b_lo, w.b_hi, cell_ * kMergeCells)) {
+      w.a_lo = glm::min(w.a_lo, a_lo);
+      w.a_hi = glm::max(w.a_hi, a_hi);
+      w.b_lo = glm::min(w.b_lo, b_lo);
+      w.b_hi = glm::max(w.b_hi, b_hi);
+      return;
+    }
+  }
+  Sweep& w = sweeps_[next_sweep_];
+  next_sweep_ = (next_sweep_ + 1) % static_cast<int>(std::size(sweeps_));
+  if (w.live) mark_sweep(w.a_lo, w.a_hi, w.b_lo, w.b_hi);
+  w = Sweep{true, a_lo, a_hi, b_lo, b_hi};
+}
+
+void MarkRecorder::flush() {
+  if (tube_.live) mark_tube(tube_.o_lo, tube_.o_hi, tube_.d_lo, tube_.d_hi, tube_.t_lo, tube_.t_hi);
+  tube_.live = false;
+  for (Sweep& w : sweeps_) {
+    if (w.live) mark_sweep(w.a_lo, w.a_hi, w.b_lo, w.b_hi);
+    w.live = false;
+  }
+}
+
+void MarkRecorder::mark_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, const glm::dvec3& d_lo,
+                             const glm::dvec3& d_hi, double t_lo, double t_hi) {
+  struct {
+    glm::dvec3 lo, hi;
+  } o_box{o_lo, o_hi}, d_box{d_lo, d_hi};
   // Pieces in t that each move about a cell.
   double rate = 0.0;
   for (int k = 0; k < 3; ++k) rate = std::max(rate, std::max(std::abs(d_box.lo[k]), std::abs(d_box.hi[k])) * inv_cell_[k]);
@@ -286,6 +420,13 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
     box_b.extend(o + d * (static_cast<double>(t_end[i]) * (1.0 + 1e-6)));
   }
   if (box_a.empty()) return;
+  add_sweep(box_a.lo, box_a.hi, box_b.lo, box_b.hi);
+}
+
+void MarkRecorder::mark_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo,
+                              const glm::dvec3& b_hi) {
+  DBox box_a, box_b;
+  box_a.lo = a_lo, box_a.hi = a_hi, box_b.lo = b_lo, box_b.hi = b_hi;
   // The part of s in [0, 1] where the swept box meets the grid (its bounds are linear in s).
   double s0 = 0.0, s1 = 1.0;
   for (int k = 0; k < 3 && s0 <= s1; ++k) {
@@ -331,6 +472,7 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
 }
 
 void MarkRecorder::take(TileMarks& out) {
+  flush();
   for (int list = 0; list < 2; ++list) {
     std::vector<std::uint32_t>& dst = list == 0 ? out.path : out.shadow;
     dst.clear();

@@ -6,11 +6,14 @@
 # time and the tiles retraced. Then a master with 2 local workers renders the animation both
 # ways and its stats JSON gives the bytes each frame put on the wire. Figures are medians
 # over the runs.
-# Usage: tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
+# Usage: [TILE=16] tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 threads=${1:-1}
 repeat=${2:-3}
+# Both modes at the tile size temporal coherence uses by default (kTemporalTileSize), so full
+# and incremental frames cut the image alike; TILE=32 gives the other default.
+tile=${TILE:-16}
 shift $(( $# > 2 ? 2 : $# ))
 anims=("$@")
 if [ ${#anims[@]} -eq 0 ]; then
@@ -38,14 +41,14 @@ for anim in "${anims[@]}"; do
   for r in $(seq 1 "$repeat"); do
     for mode in off on; do
       echo "rtc-render $name --temporal $mode --threads $threads (run $r of $repeat)" >&2
-      "$render" "${scene[@]}" --temporal "$mode" --threads "$threads" --out "$tmp/f_####.png" --log-level warn \
+      "$render" "${scene[@]}" --temporal "$mode" --tile "$tile" --threads "$threads" --out "$tmp/f_####.png" --log-level warn \
         | python3 tests/bench/summarize_temporal.py --parse "$name" "$mode" "$r" >> "$jsonl.tmp"
     done
   done
   for mode in off on; do
     echo "cluster $name --temporal $mode (2 workers)" >&2
     rm -f "$tmp/ready" "$tmp/stats.jsonl"
-    "$master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$tmp/ready" --temporal "$mode" --min-workers 2 \
+    "$master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$tmp/ready" --temporal "$mode" --tile "$tile" --min-workers 2 \
       --stats-json "$tmp/stats.jsonl" --log-level warn &
     m=$!
     pids+=("$m")

@@ -55,7 +55,10 @@ def table(path):
         return statistics.median(xs) if xs else float("nan")
 
     print("# Temporal coherence (issue 7): incremental frames against full re-renders\n")
-    print("Regenerate with `tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12). Per frame: "
+    print("Regenerate with `[TILE=16] tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12), "
+          "both modes in tiles of TILE pixels (16, what temporal coherence uses by default). Moving meshes are "
+          "instanced (their kd-trees built once, in object space), so prepare costs next to nothing after frame 0 "
+          "in either mode. Per frame: "
           "time = prepare (kd-trees) + render of `rtc-render`, median over the runs; `--temporal off` traces "
           "every frame whole, `--temporal on` traces frame 0 whole while recording marks, then only the tiles the "
           "tracker finds dirty. Times are process CPU time (steadier than wall time on a shared machine; with "
