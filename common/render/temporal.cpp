@@ -12,6 +12,9 @@ namespace rtc {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr float kInfF = std::numeric_limits<float>::infinity();
+
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
 /// Pieces per cell a marked group moves: finer pieces hug the rays closer (fewer voxels beside
 /// them marked, fewer tiles retraced) for more boxes to mark.
@@ -239,20 +242,25 @@ void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir,
   // linear in t (t >= 0), so the part of [0, longest t_end] where it meets the grid takes six
   // divisions, not six per ray.
   {
-    DBox o_box, d_box;
-    double t_far = 0.0;
-    bool any = false;
+    // Boxes of floats are exact in float: min and max round nothing.
+    glm::vec3 o_lo(kInfF), o_hi(-kInfF), d_lo(kInfF), d_hi(-kInfF);
+    float t_max = 0.0f;
     for (int i = 0; i < n; ++i) {
-      const glm::dvec3 o(org[i]), d(dir[i]);
-      if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || std::isnan(t_end[i])) continue;  // hits nothing, ever
-      if (d == glm::dvec3(0.0)) continue;
-      any = true;
-      o_box.extend(o);
-      d_box.extend(d);
-      // A hit exactly where a moving mesh now starts must still count: reach a little past it.
-      t_far = std::max(t_far, std::isfinite(t_end[i]) ? static_cast<double>(t_end[i]) * (1.0 + 1e-6) + 1e-30 : kInf);
+      const glm::vec3& o = org[i];
+      const glm::vec3& d = dir[i];
+      if (!finite(o) || !finite(d) || std::isnan(t_end[i])) continue;  // hits nothing, ever
+      if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) continue;
+      o_lo = glm::min(o_lo, o);
+      o_hi = glm::max(o_hi, o);
+      d_lo = glm::min(d_lo, d);
+      d_hi = glm::max(d_hi, d);
+      t_max = std::max(t_max, t_end[i]);
     }
-    if (!any) return;
+    if (!(o_lo.x <= o_hi.x)) return;  // no ray
+    DBox o_box, d_box;
+    o_box.lo = glm::dvec3(o_lo), o_box.hi = glm::dvec3(o_hi), d_box.lo = glm::dvec3(d_lo), d_box.hi = glm::dvec3(d_hi);
+    // A hit exactly where a moving mesh now starts must still count: reach a little past it.
+    const double t_far = std::isfinite(t_max) ? static_cast<double>(t_max) * (1.0 + 1e-6) + 1e-30 : kInf;
     double t_lo = 0.0, t_hi = t_far;
     for (int k = 0; k < 3 && t_lo <= t_hi; ++k) {
       // lo(t) = o_lo + d_lo t <= grid.hi and hi(t) = o_hi + d_hi t >= grid.lo, each a half-line.
@@ -412,15 +420,28 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   if (grid_.empty()) return;
   // Segments from the surface points A_i to the light B_i (all the same point for one light's
   // packet): every point is (1 - s) A_i + s B_i, inside the box swept from box(A) to box(B).
-  DBox box_a, box_b;
+  // In float (box(A) exact; each B_i within 2 ulps of max(|A_i|, |B_i|)), then widened in
+  // double by 1e-6 of the largest magnitude, far past that rounding.
+  glm::vec3 a_lo(kInfF), a_hi(-kInfF), b_lo(kInfF), b_hi(-kInfF);
   for (int i = 0; i < n; ++i) {
-    const glm::dvec3 o(org[i]), d(dir[i]);
-    if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || !std::isfinite(t_end[i])) continue;
-    box_a.extend(o);
-    box_b.extend(o + d * (static_cast<double>(t_end[i]) * (1.0 + 1e-6)));
+    const glm::vec3& o = org[i];
+    const glm::vec3& d = dir[i];
+    if (!finite(o) || !finite(d) || !std::isfinite(t_end[i])) continue;
+    const glm::vec3 b = o + d * t_end[i];
+    if (!finite(b)) {  // past float's range: this one in double, on its own
+      const glm::dvec3 bd = glm::dvec3(o) + glm::dvec3(d) * static_cast<double>(t_end[i]);
+      mark_sweep(glm::dvec3(o), glm::dvec3(o), bd - 1e-6 * glm::length(bd), bd + 1e-6 * glm::length(bd));
+      continue;
+    }
+    a_lo = glm::min(a_lo, o);
+    a_hi = glm::max(a_hi, o);
+    b_lo = glm::min(b_lo, b);
+    b_hi = glm::max(b_hi, b);
   }
-  if (box_a.empty()) return;
-  add_sweep(box_a.lo, box_a.hi, box_b.lo, box_b.hi);
+  if (!(a_lo.x <= a_hi.x)) return;
+  const glm::vec3 mag = glm::max(glm::max(glm::abs(a_lo), glm::abs(a_hi)), glm::max(glm::abs(b_lo), glm::abs(b_hi)));
+  const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
+  add_sweep(glm::dvec3(a_lo), glm::dvec3(a_hi), glm::dvec3(b_lo) - pad, glm::dvec3(b_hi) + pad);
 }
 
 void MarkRecorder::mark_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo,
@@ -543,6 +564,44 @@ void TemporalTracker::set_marks(std::uint32_t tile, const TileMarks& marks) {
   r.known = true;
 }
 
+void TemporalTracker::replace_marks(std::uint32_t tile, const TileMarks& marks) {
+  TileRecord& r = records_[tile];
+  const std::uint32_t voxels = grid_.voxel_count();
+  const auto usable = [voxels](const std::vector<std::uint32_t>& list) {
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      if (list[i] >= voxels || (i > 0 && list[i] <= list[i - 1])) return false;
+    }
+    return true;
+  };
+  if (!r.known || !usable(marks.path) || !usable(marks.shadow)) {
+    clear_marks(tile);
+    set_marks(tile, marks);  // leaves the tile unknown when a voxel is not this grid's
+    return;
+  }
+  // A tile traced again mostly crosses the voxels it crossed before: walk the old and new
+  // lists (both ascending) and touch only the voxels in one of them (Jevans 3.3.1's reset, done
+  // as a difference).
+  const std::uint64_t bit = std::uint64_t{1} << (tile & 63);
+  for (int list = 0; list < 2; ++list) {
+    const std::vector<std::uint32_t>& old_list = list == 0 ? r.marks.path : r.marks.shadow;
+    const std::vector<std::uint32_t>& new_list = list == 0 ? marks.path : marks.shadow;
+    std::size_t i = 0, j = 0;
+    while (i < old_list.size() || j < new_list.size()) {
+      if (j == new_list.size() || (i < old_list.size() && old_list[i] < new_list[j])) {
+        std::vector<std::uint64_t>& t = voxel_tiles_[list][old_list[i++]];
+        if (!t.empty()) t[tile >> 6] &= ~bit;
+      } else if (i == old_list.size() || new_list[j] < old_list[i]) {
+        std::vector<std::uint64_t>& t = voxel_tiles_[list][new_list[j++]];
+        if (t.empty()) t.assign(words_, 0);
+        t[tile >> 6] |= bit;
+      } else {
+        ++i, ++j;
+      }
+    }
+  }
+  r.marks = marks;
+}
+
 bool TemporalTracker::must_trace(const TileRecord& r, const PlanData& d) const {
   if (d.full || !r.known) return true;
   if (d.lights_moved && r.marks.shaded) return true;
@@ -559,8 +618,11 @@ std::vector<TemporalDecision> TemporalTracker::done(std::uint32_t tile, std::uin
   if (tile >= tiles_ || records_[tile].out != id || id == 0) return decisions;  // not out for this plan
   TileRecord& r = records_[tile];
   r.out = 0;
-  clear_marks(tile);
-  if (marks != nullptr) set_marks(tile, *marks);
+  if (marks != nullptr) {
+    replace_marks(tile, *marks);
+  } else {
+    clear_marks(tile);
+  }
   std::size_t i = 0;
   for (; i < r.waiting.size(); ++i) {
     const std::uint64_t p = r.waiting[i];

@@ -202,6 +202,8 @@ class TemporalTracker {
   };
   void clear_marks(std::uint32_t tile);
   void set_marks(std::uint32_t tile, const TileMarks& marks);
+  /// clear_marks then set_marks, touching only the voxels whose bit changes.
+  void replace_marks(std::uint32_t tile, const TileMarks& marks);
   [[nodiscard]] bool must_trace(const TileRecord& r, const PlanData& d) const;
   /// Voxels that mesh `mesh` covers under `world` (padded), OR'ed into `changed`; false when the
   /// box is not inside the grid.

@@ -6,7 +6,7 @@
 # time and the tiles retraced. Then a master with 2 local workers renders the animation both
 # ways and its stats JSON gives the bytes each frame put on the wire. Figures are medians
 # over the runs.
-# Usage: [TILE=16] tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
+# Usage: [TILE=16] [FIRST=9] tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 threads=${1:-1}
@@ -14,6 +14,13 @@ repeat=${2:-3}
 # Both modes at the tile size temporal coherence uses by default (kTemporalTileSize), so full
 # and incremental frames cut the image alike; TILE=32 gives the other default.
 tile=${TILE:-16}
+first=${FIRST:-9}
+# "A-B" of an animation's first two frames (temporal coherence needs more than one frame).
+first_two() {
+  if [ "$1" = default ]; then echo 0-1; else
+    python3 -c 'import json,sys; a=json.load(open(sys.argv[1])).get("animation",{}).get("frames",[0]); print(f"{a[0]}-{a[0]+1}")' "$1"
+  fi
+}
 shift $(( $# > 2 ? 2 : $# ))
 anims=("$@")
 if [ ${#anims[@]} -eq 0 ]; then
@@ -43,6 +50,15 @@ for anim in "${anims[@]}"; do
       echo "rtc-render $name --temporal $mode --threads $threads (run $r of $repeat)" >&2
       "$render" "${scene[@]}" --temporal "$mode" --tile "$tile" --threads "$threads" --out "$tmp/f_####.png" --log-level warn \
         | python3 tests/bench/summarize_temporal.py --parse "$name" "$mode" "$r" >> "$jsonl.tmp"
+    done
+  done
+  # The first frame alone, FIRST times each way, alternating (one sample per run above is
+  # too few for a ratio of two single frames on a shared machine).
+  for r in $(seq 1 "$first"); do
+    for mode in off on; do
+      "$render" "${scene[@]}" --temporal "$mode" --tile "$tile" --threads "$threads" --frames "$(first_two "$anim")" \
+        --out "$tmp/g_####.png" --log-level warn \
+        | python3 tests/bench/summarize_temporal.py --parse "$name" "first-$mode" "$r" >> "$jsonl.tmp"
     done
   done
   for mode in off on; do

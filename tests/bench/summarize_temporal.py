@@ -55,7 +55,7 @@ def table(path):
         return statistics.median(xs) if xs else float("nan")
 
     print("# Temporal coherence (issue 7): incremental frames against full re-renders\n")
-    print("Regenerate with `[TILE=16] tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12), "
+    print("Regenerate with `[TILE=16] [FIRST=9] tests/bench/run_temporal.sh [THREADS] [REPEAT]` (2-core AMD EPYC, Debian 12), "
           "both modes in tiles of TILE pixels (16, what temporal coherence uses by default). Moving meshes are "
           "instanced (their kd-trees built once, in object space), so prepare costs next to nothing after frame 0 "
           "in either mode. Per frame: "
@@ -63,8 +63,9 @@ def table(path):
           "every frame whole, `--temporal on` traces frame 0 whole while recording marks, then only the tiles the "
           "tracker finds dirty. Times are process CPU time (steadier than wall time on a shared machine; with "
           "THREADS > 1 summed over the threads). Speed-up = sum over frames 1..N of the full frames' prepare + "
-          "render time / the incremental frames'; render only leaves prepare out. First-frame overhead = "
-          "incremental frame 0 / full frame 0, render CPU time (the cost of marking). Wire: bytes per frame "
+          "render time / the incremental frames', per run (the two renders of a run ran one after the other), "
+          "median over the runs [range]; render only leaves prepare out. First-frame overhead = incremental "
+          "frame 0 / full frame 0, render CPU time (the cost of marking), from FIRST (9) further runs of the first two frames alone, paired the same way. Wire: bytes per frame "
           "the master received (tiles + marks) with 2 workers, frames 1..N.\n")
     print("| animation | frames | tiles | traced per frame (mean, min-max) | full ms/frame | incremental ms/frame | "
           "speed-up | render only | first-frame overhead | wire KB/frame full | incremental | of which marks | saved |")
@@ -72,7 +73,7 @@ def table(path):
     for s in scenes:
         by = {}
         for r in recs:
-            if r["scene"] == s and r["kind"] == "render":
+            if r["scene"] == s and r["kind"] == "render" and not r["mode"].startswith("first-"):
                 by.setdefault((r["mode"], r["frame"]), []).append(r)
         frames = sorted({f for (_, f) in by})
         if not frames:
@@ -84,9 +85,40 @@ def table(path):
         later = frames[1:]
         full = sum(t("off", f, "prepare_cpu_ms") + t("off", f, "cpu_ms") for f in later)
         inc = sum(t("on", f, "prepare_cpu_ms") + t("on", f, "cpu_ms") for f in later)
-        full_r = sum(t("off", f, "cpu_ms") for f in later)
-        inc_r = sum(t("on", f, "cpu_ms") for f in later)
-        over = t("on", frames[0], "cpu_ms") / max(t("off", frames[0], "cpu_ms"), 1e-9)
+        # Paired per run (run r's full and incremental renders ran one after the other, so they
+        # share the machine's state of the moment): the median over runs, and the range.
+        runs = sorted({x["run"] for xs in by.values() for x in xs})
+
+        def run_val(mode, f, r, key):
+            xs = [x[key] for x in by.get((mode, f), []) if x["run"] == r]
+            return xs[0] if xs else None
+
+        speed, speed_r, over_r = [], [], []
+        for r in runs:
+            vals = {}
+            for mode in ("off", "on"):
+                p = [run_val(mode, f, r, "prepare_cpu_ms") for f in later]
+                c = [run_val(mode, f, r, "cpu_ms") for f in later]
+                if None in p or None in c:
+                    break
+                vals[mode] = (sum(p) + sum(c), sum(c))
+            else:
+                speed.append(vals["off"][0] / max(vals["on"][0], 1e-9))
+                speed_r.append(vals["off"][1] / max(vals["on"][1], 1e-9))
+        # First-frame overhead from the runs of the first frames alone (FIRST of them).
+        first = {}
+        for x in recs:
+            if x["scene"] == s and x["kind"] == "render" and x["mode"].startswith("first-") and x["frame"] == frames[0]:
+                first.setdefault(x["run"], {})[x["mode"][6:]] = x["cpu_ms"]
+        for pair in first.values():
+            if "on" in pair and pair.get("off"):
+                over_r.append(pair["on"] / pair["off"] - 1)
+
+        def rng(xs, fmt):
+            if not xs:
+                return "n/a"
+            return fmt(med(xs)) + " [" + fmt(min(xs)) + " to " + fmt(max(xs)) + "]"
+
         traced = [by[("on", f)][0].get("traced", 0) for f in later if ("on", f) in by]
         tiles = by[("on", frames[0])][0].get("tiles", 0) if ("on", frames[0]) in by else 0
         cl = [r for r in recs if r["scene"] == s and r["kind"] == "cluster"]
@@ -98,8 +130,9 @@ def table(path):
         wf, wi, wm = wire("off"), wire("on"), wire("on", "mark_bytes")
         n = len(later)
         print(f"| {s} | {len(frames)} | {tiles} | {statistics.mean(traced):.0f} ({min(traced)}-{max(traced)}) | "
-              f"{full / n:.0f} | {inc / n:.0f} | **{full / max(inc, 1e-9):.2f}x** | {full_r / max(inc_r, 1e-9):.2f}x | "
-              f"{100 * (over - 1):+.0f}% | {wf:.0f} | {wi:.0f} | {wm:.1f} | {100 * (1 - wi / wf):.0f}% |")
+              f"{full / n:.0f} | {inc / n:.0f} | **{rng(speed, lambda v: f'{v:.2f}x')}** | "
+              f"{rng(speed_r, lambda v: f'{v:.2f}x')} | {rng(over_r, lambda v: f'{100 * v:+.0f}%')} | "
+              f"{wf:.0f} | {wi:.0f} | {wm:.1f} | {100 * (1 - wi / wf):.0f}% |")
 
 
 if __name__ == "__main__":

@@ -3,6 +3,8 @@
 // bit-identical to a full render of that frame.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -141,6 +143,66 @@ TEST(MarkGrid, CoversEveryPoseOfTheMovingMeshes) {
   Scene still = default_scene();
   still.animation.meshes.clear();
   EXPECT_TRUE(mark_grid_for(still).empty());
+}
+
+// A retraced tile's old marks are replaced (Jevans 3.3.1), by a difference walk over the two
+// ascending lists: the tracker ends in the state a fresh one given the new marks has, and
+// lists that are not ascending (a peer's) take the slow path to the same state.
+TEST(TemporalTracker, RetracedMarksReplaceTheOldOnes) {
+  const Scene scene = default_scene();
+  const MarkGrid g = mark_grid_for(scene);
+  TileMarks everything, half, none;
+  for (std::uint32_t v = 0; v < g.voxel_count(); ++v) {
+    everything.path.push_back(v);
+    everything.shadow.push_back(v);
+    if (v % 2 == 0) half.path.push_back(v);
+  }
+  TileMarks reversed = everything;
+  std::reverse(reversed.path.begin(), reversed.path.end());
+  // Route 1: everything, then retraced for frame 1 with half.
+  TemporalTracker a(scene, g, 1);
+  TemporalPlan pa = a.plan(0);
+  (void)a.done(0, pa.id, &everything);
+  pa = a.plan(1);
+  ASSERT_EQ(pa.dirty[0], TemporalPlan::kTrace) << "the sphere moved through voxels the tile crossed";
+  (void)a.done(0, pa.id, &half);
+  // Route 2: half from the start (kept for frame 1 or traced again with half).
+  TemporalTracker b(scene, g, 1);
+  TemporalPlan pb = b.plan(0);
+  (void)b.done(0, pb.id, &half);
+  pb = b.plan(1);
+  if (pb.dirty[0] == TemporalPlan::kTrace) (void)b.done(0, pb.id, &half);
+  for (int frame = 2; frame < 6; ++frame) {
+    pa = a.plan(frame);
+    pb = b.plan(frame);
+    EXPECT_EQ(pa.dirty, pb.dirty) << "frame " << frame;
+    EXPECT_EQ(pa.by_path, pb.by_path) << "frame " << frame;
+    EXPECT_EQ(pa.by_shadow, 0u) << "frame " << frame << ": the shadow marks of the first trace were reset";
+    if (pa.dirty[0] == TemporalPlan::kTrace) (void)a.done(0, pa.id, &half);
+    if (pb.dirty[0] == TemporalPlan::kTrace) (void)b.done(0, pb.id, &half);
+  }
+  // Emptied by a retrace: nothing moving dirties it any more.
+  TemporalTracker c(scene, g, 1);
+  TemporalPlan pc = c.plan(0);
+  (void)c.done(0, pc.id, &everything);
+  pc = c.plan(1);
+  ASSERT_EQ(pc.dirty[0], TemporalPlan::kTrace);
+  (void)c.done(0, pc.id, &none);
+  EXPECT_EQ(c.plan(2).dirty[0], TemporalPlan::kKeep);
+  // Not ascending: still replaces (clear, then set).
+  TemporalTracker d(scene, g, 1);
+  TemporalPlan pd = d.plan(0);
+  (void)d.done(0, pd.id, &none);
+  pd = d.plan(0);
+  EXPECT_EQ(pd.dirty[0], TemporalPlan::kKeep);
+  TemporalTracker e(scene, g, 1);
+  TemporalPlan pe = e.plan(0);
+  (void)e.done(0, pe.id, &half);
+  pe = e.plan(1);
+  if (pe.dirty[0] == TemporalPlan::kTrace) {
+    (void)e.done(0, pe.id, &reversed);
+    EXPECT_EQ(e.plan(2).dirty[0], TemporalPlan::kTrace) << "the unsorted list's voxels count";
+  }
 }
 
 TEST(TemporalTracker, PlansFollowWhatMoved) {
