@@ -62,13 +62,5 @@ glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, std::uin
   return normals_at(g, tri, a, b, c, dir, prim, alpha, beta, gamma).shading;
 }
 
-std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light) {
-  const glm::vec3 d = light.position - s.point;
-  if (!(glm::dot(d, s.geometric) > 0.0f)) return std::nullopt;
-  const glm::vec3 to_light = normalize_or(d, s.normal);
-  if (!(glm::dot(to_light, s.normal) > 0.0f)) return std::nullopt;
-  // The light itself sits at t = 1.
-  return ShadowRay{RayQuery{s.point, 0.0f, d, 1.0f}, to_light};
-}
 
 }  // namespace rtc
