@@ -10,6 +10,7 @@
 #include <glm/glm.hpp>
 
 #include "common/accel/trace.h"
+#include "common/math/ray_offset.h"
 #include "common/render/frame_state.h"
 
 namespace rtc {
@@ -28,13 +29,11 @@ struct SurfaceSample {
 /// ray (triangles are double sided), and the point offset along the geometric normal by
 /// offset_ray_origin (common/math/ray_offset.h). Never NaN: degenerate normals fall back to
 /// the geometric one.
-[[nodiscard]] SurfaceSample surface_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim,
-                                       float beta, float gamma);
+/// (Defined below, inline: see shadow_ray.)
 
 /// surface_at(fs, dir, prim, beta, gamma).normal alone (the same bits), for kernels that need
 /// nothing else of the surface.
-[[nodiscard]] glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim, float beta,
-                                          float gamma);
+/// (Defined below, inline.)
 
 /// A shadow ray from a surface to a point light: origin = the offset hit point, dir = light -
 /// origin, t in (0, 1). `to_light` is the unit direction used for shading.
@@ -57,5 +56,64 @@ struct ShadowRay {
   // The light itself sits at t = 1.
   return ShadowRay{RayQuery{s.point, 0.0f, d, 1.0f}, to_light};
 }
+
+// ---- definitions (inline so that each ISA's tile kernel compiles them in) ----
+
+namespace shading_detail {
+
+/// Normalised, or `fallback` when the length is zero or not finite.
+inline glm::vec3 normalize_or(const glm::vec3& a, const glm::vec3& fallback) {
+  const float len2 = glm::dot(a, a);
+  if (!(len2 > 0.0f) || !std::isfinite(len2)) return fallback;
+  return a * (1.0f / std::sqrt(len2));
+}
+
+/// The geometric and shading normals at barycentrics (beta, gamma) of triangle `prim`, both
+/// faced towards the ray.
+struct Normals {
+  glm::vec3 geometric;
+  glm::vec3 shading;
+};
+
+inline Normals normals_at(const FrameGeometry& g, const glm::uvec3& tri, const glm::vec3& a, const glm::vec3& b,
+                   const glm::vec3& c, const glm::vec3& dir, std::uint32_t prim, float alpha, float beta, float gamma) {
+  glm::vec3 ng = normalize_or(glm::cross(b - a, c - a), glm::vec3(0, 0, 1));
+  if (glm::dot(ng, dir) > 0.0f) ng = -ng;
+  glm::vec3 n = ng;
+  if (g.smooth[prim]) {
+    const glm::vec3 na = g.normals[tri.x], nb = g.normals[tri.y], nc = g.normals[tri.z];
+    n = normalize_or((na * alpha + nb * beta) + nc * gamma, ng);
+    if (glm::dot(n, dir) > 0.0f) n = -n;
+  }
+  return Normals{ng, n};
+}
+
+}  // namespace shading_detail
+
+inline SurfaceSample surface_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim, float beta, float gamma) {
+  const FrameGeometry& g = *fs.geometry;
+  const glm::uvec3 tri = g.triangles[prim];
+  const glm::vec3 a = g.positions[tri.x], b = g.positions[tri.y], c = g.positions[tri.z];
+  const float alpha = (1.0f - beta) - gamma;
+  const glm::vec3 p = (a * alpha + b * beta) + c * gamma;
+  const shading_detail::Normals n = shading_detail::normals_at(g, tri, a, b, c, dir, prim, alpha, beta, gamma);
+  SurfaceSample s;
+  s.point = offset_ray_origin(p, n.geometric, vertex_magnitude(a, b, c));
+  s.normal = n.shading;
+  s.geometric = n.geometric;
+  s.view = -shading_detail::normalize_or(dir, glm::vec3(0, 0, 1));
+  s.dir = dir;
+  s.material = &fs.materials[g.material_ids[prim]];
+  return s;
+}
+
+inline glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim, float beta, float gamma) {
+  const FrameGeometry& g = *fs.geometry;
+  const glm::uvec3 tri = g.triangles[prim];
+  const glm::vec3 a = g.positions[tri.x], b = g.positions[tri.y], c = g.positions[tri.z];
+  const float alpha = (1.0f - beta) - gamma;
+  return shading_detail::normals_at(g, tri, a, b, c, dir, prim, alpha, beta, gamma).shading;
+}
+
 
 }  // namespace rtc
