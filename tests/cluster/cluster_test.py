@@ -1082,7 +1082,9 @@ def case_temporal_exr(c):
 def case_temporal_worker_killed(c):
     """A worker SIGKILLed mid-run: its tiles (and the marks they would have sent) go to the
     others; every frame still bit-identical."""
-    scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360"]
+    # 2 samples a pixel and the kill after frame 0, so that nine frames are still to come when it
+    # lands (frames after the first trace a few tiles each and go by fast).
+    scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360", "--spp", "2"]
     ref = c.reference("kill-ref", scene, "0-9", "png", extra=("--temporal", "off"))
     out = c.mkdir("kill")
     stats = c.path("kill-stats.json")
@@ -1091,7 +1093,7 @@ def case_temporal_worker_killed(c):
                                                      "--temporal", "on", "--tiles-per-worker", "2"])
     victim = c.start_worker("kill-victim", addr, 1)
     keeper = c.start_worker("kill-keeper", addr, 1)
-    expect_log(master, r"frame 1 \[seq 1\]", "frame 1 done", timeout=60, watch=[master])
+    expect_log(master, r"frame 0 \[seq 0\]", "frame 0 done", timeout=60, watch=[master])
     victim.send(signal.SIGKILL)
     expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
     expect_log(master, r"worker w\d+ \(kill-victim at [^)]*\) left", "the victim's loss", timeout=30, watch=[master])
