@@ -245,13 +245,14 @@ std::shared_ptr<FrameState> frame_state_at(const Scene& scene, const FramePose& 
   return fs;
 }
 
-// A tree over g.triangles[first, first + count), reporting their indices there as ids.
-std::shared_ptr<const KdTree> build_range_tree(const FrameGeometry& g, std::size_t first, std::size_t count,
-                                               const KdBuildOptions& options) {
-  std::vector<std::uint32_t> ids(count);
-  for (std::size_t i = 0; i < count; ++i) ids[i] = static_cast<std::uint32_t>(first + i);
-  return std::make_shared<const KdTree>(
-      KdTree::build(g.positions, std::span<const glm::uvec3>(g.triangles).subspan(first, count), options, ids));
+// A tree over `triangles` (into `positions`) that reports triangle i as id first_id + i: one
+// mesh's triangles, whose ids are their indices over all meshes (FrameGeometry::triangles).
+std::shared_ptr<const KdTree> build_mesh_tree(std::span<const glm::vec3> positions,
+                                              std::span<const glm::uvec3> triangles, std::size_t first_id,
+                                              const KdBuildOptions& options) {
+  std::vector<std::uint32_t> ids(triangles.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<std::uint32_t>(first_id + i);
+  return std::make_shared<const KdTree>(KdTree::build(positions, triangles, options, ids));
 }
 
 }  // namespace
@@ -379,9 +380,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
             // Built once over the file's vertices, so clipped like the static tree.
             KdBuildOptions object_kd = kd;
             object_kd.clip = kd_clip_for(options_.kd_clip, false);
-            std::vector<std::uint32_t> ids(count);
-            for (std::size_t i = 0; i < count; ++i) ids[i] = static_cast<std::uint32_t>(t_base + i);
-            object_trees_[mi] = std::make_shared<const KdTree>(KdTree::build(mesh.positions, mesh.triangles, object_kd, ids));
+            object_trees_[mi] = build_mesh_tree(mesh.positions, mesh.triangles, t_base, object_kd);
             ++built;
             spdlog::debug("frame {}: mesh {} ({}) object-space tree, built once: {}", frame, mi, mesh.name,
                           object_trees_[mi]->stats().to_string());
@@ -397,7 +396,8 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
           if (!geometry->spaces.empty()) geometry->spaces.emplace_back();
         } else {
           if (!geometry->spaces.empty()) geometry->spaces.emplace_back();
-          geometry->trees.push_back(build_range_tree(g, t_base, count, moving_kd));
+          geometry->trees.push_back(build_mesh_tree(
+              g.positions, std::span<const glm::uvec3>(g.triangles).subspan(t_base, count), t_base, moving_kd));
           ++built;
           spdlog::debug("frame {}: mesh {} ({}) tree: {}", frame, mi, scene_.meshes[mi].name,
                         geometry->trees.back()->stats().to_string());

@@ -28,12 +28,14 @@ struct SurfaceSample {
 /// Hit point interpolated from the barycentrics (not org + t dir), normals faced towards the
 /// ray (triangles are double sided), and the point offset along the geometric normal by
 /// offset_ray_origin (common/math/ray_offset.h). Never NaN: degenerate normals fall back to
-/// the geometric one.
-/// (Defined below, inline: see shadow_ray.)
+/// the geometric one. (Defined below, inline.)
+[[nodiscard]] inline SurfaceSample surface_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim,
+                                              float beta, float gamma);
 
 /// surface_at(fs, dir, prim, beta, gamma).normal alone (the same bits), for kernels that need
-/// nothing else of the surface.
-/// (Defined below, inline.)
+/// nothing else of the surface. (Defined below, inline.)
+[[nodiscard]] inline glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, std::uint32_t prim,
+                                                 float beta, float gamma);
 
 /// A shadow ray from a surface to a point light: origin = the offset hit point, dir = light -
 /// origin, t in (0, 1). `to_light` is the unit direction used for shading.
@@ -43,19 +45,8 @@ struct ShadowRay {
 };
 
 /// Empty when the light is behind the geometric surface or the shading normal (it adds nothing).
-/// Inline: the tile kernels call it per lane and light, and out of line each call waited on its
-/// own square root and division (6% of a frame's profile); inlined, the lanes' overlap. The
-/// same operations in the same order at every ISA (no FMA contraction), so the same bits.
-[[nodiscard]] inline std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light) {
-  const glm::vec3 d = light.position - s.point;
-  if (!(glm::dot(d, s.geometric) > 0.0f)) return std::nullopt;
-  const float len2 = glm::dot(d, d);
-  // Normalised, or the shading normal when the length is zero or not finite.
-  const glm::vec3 to_light = !(len2 > 0.0f) || !std::isfinite(len2) ? s.normal : d * (1.0f / std::sqrt(len2));
-  if (!(glm::dot(to_light, s.normal) > 0.0f)) return std::nullopt;
-  // The light itself sits at t = 1.
-  return ShadowRay{RayQuery{s.point, 0.0f, d, 1.0f}, to_light};
-}
+/// (Defined below, inline.)
+[[nodiscard]] inline std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light);
 
 // ---- definitions (inline so that each ISA's tile kernel compiles them in) ----
 
@@ -115,5 +106,16 @@ inline glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, s
   return shading_detail::normals_at(g, tri, a, b, c, dir, prim, alpha, beta, gamma).shading;
 }
 
+/// Inline: the tile kernels call it per lane and light, and out of line each call waited on its
+/// own square root and division (6% of a frame's profile); inlined, the lanes' overlap. The
+/// same operations in the same order at every ISA (no FMA contraction), so the same bits.
+inline std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light) {
+  const glm::vec3 d = light.position - s.point;
+  if (!(glm::dot(d, s.geometric) > 0.0f)) return std::nullopt;
+  const glm::vec3 to_light = shading_detail::normalize_or(d, s.normal);
+  if (!(glm::dot(to_light, s.normal) > 0.0f)) return std::nullopt;
+  // The light itself sits at t = 1.
+  return ShadowRay{RayQuery{s.point, 0.0f, d, 1.0f}, to_light};
+}
 
 }  // namespace rtc

@@ -235,6 +235,30 @@ void MarkRecorder::mark_box(int list, const glm::dvec3& lo, const glm::dvec3& hi
   }
 }
 
+bool MarkRecorder::meets_grid(const glm::dvec3& lo_at_0, const glm::dvec3& lo_slope, const glm::dvec3& hi_at_0,
+                              const glm::dvec3& hi_slope, double& t0, double& t1) const {
+  for (int k = 0; k < 3 && t0 <= t1; ++k) {
+    // lo(t) <= grid.hi and hi(t) >= grid.lo (the box padded), each a half-line in t.
+    const double lo_a = lo_at_0[k] - pad_, lo_d = lo_slope[k];
+    const double hi_a = hi_at_0[k] + pad_, hi_d = hi_slope[k];
+    if (lo_d == 0.0) {
+      if (lo_a > grid_.hi[k]) return false;
+    } else if (lo_d > 0.0) {
+      t1 = std::min(t1, (grid_.hi[k] - lo_a) / lo_d);
+    } else {
+      t0 = std::max(t0, (grid_.hi[k] - lo_a) / lo_d);
+    }
+    if (hi_d == 0.0) {
+      if (hi_a < grid_.lo[k]) return false;
+    } else if (hi_d > 0.0) {
+      t0 = std::max(t0, (grid_.lo[k] - hi_a) / hi_d);
+    } else {
+      t1 = std::min(t1, (grid_.lo[k] - hi_a) / hi_d);
+    }
+  }
+  return t0 <= t1;
+}
+
 void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
   if (grid_.empty()) return;
   // At a common t every ray is in box(org) + t box(dir), a small box for a coherent packet
@@ -262,26 +286,7 @@ void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir,
     // A hit exactly where a moving mesh now starts must still count: reach a little past it.
     const double t_far = std::isfinite(t_max) ? static_cast<double>(t_max) * (1.0 + 1e-6) + 1e-30 : kInf;
     double t_lo = 0.0, t_hi = t_far;
-    for (int k = 0; k < 3 && t_lo <= t_hi; ++k) {
-      // lo(t) = o_lo + d_lo t <= grid.hi and hi(t) = o_hi + d_hi t >= grid.lo, each a half-line.
-      const double lo_a = o_box.lo[k] - pad_, lo_d = d_box.lo[k];
-      const double hi_a = o_box.hi[k] + pad_, hi_d = d_box.hi[k];
-      if (lo_d == 0.0) {
-        if (lo_a > grid_.hi[k]) return;
-      } else if (lo_d > 0.0) {
-        t_hi = std::min(t_hi, (grid_.hi[k] - lo_a) / lo_d);
-      } else {
-        t_lo = std::max(t_lo, (grid_.hi[k] - lo_a) / lo_d);
-      }
-      if (hi_d == 0.0) {
-        if (hi_a < grid_.lo[k]) return;
-      } else if (hi_d > 0.0) {
-        t_lo = std::max(t_lo, (grid_.lo[k] - hi_a) / hi_d);
-      } else {
-        t_hi = std::min(t_hi, (grid_.lo[k] - hi_a) / hi_d);
-      }
-    }
-    if (!(t_lo <= t_hi)) return;  // the whole group passes beside the region where anything moves
+    if (!meets_grid(o_box.lo, d_box.lo, o_box.hi, d_box.hi, t_lo, t_hi)) return;  // passes beside it
     if (std::isfinite(t_hi)) {
       // Widen a hair for the rounding of the divisions above.
       t_lo = std::max(0.0, t_lo - 1e-9 * (1.0 + t_lo));
@@ -450,27 +455,7 @@ void MarkRecorder::mark_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, co
   box_a.lo = a_lo, box_a.hi = a_hi, box_b.lo = b_lo, box_b.hi = b_hi;
   // The part of s in [0, 1] where the swept box meets the grid (its bounds are linear in s).
   double s0 = 0.0, s1 = 1.0;
-  for (int k = 0; k < 3 && s0 <= s1; ++k) {
-    // lo(s) <= grid.hi and hi(s) >= grid.lo, each a half-line in s.
-    const double lo_a = box_a.lo[k] - pad_, lo_d = box_b.lo[k] - box_a.lo[k];
-    const double hi_a = box_a.hi[k] + pad_, hi_d = box_b.hi[k] - box_a.hi[k];
-    const double g_lo = grid_.lo[k], g_hi = grid_.hi[k];
-    if (lo_d == 0.0) {
-      if (lo_a > g_hi) return;
-    } else if (lo_d > 0.0) {
-      s1 = std::min(s1, (g_hi - lo_a) / lo_d);
-    } else {
-      s0 = std::max(s0, (g_hi - lo_a) / lo_d);
-    }
-    if (hi_d == 0.0) {
-      if (hi_a < g_lo) return;
-    } else if (hi_d > 0.0) {
-      s0 = std::max(s0, (g_lo - hi_a) / hi_d);
-    } else {
-      s1 = std::min(s1, (g_lo - hi_a) / hi_d);
-    }
-  }
-  if (!(s0 <= s1)) return;  // the whole group passes beside the region where anything moves
+  if (!meets_grid(box_a.lo, box_b.lo - box_a.lo, box_a.hi, box_b.hi - box_a.hi, s0, s1)) return;  // passes beside it
   // Widen a hair for the rounding of the divisions above.
   s0 = std::max(0.0, s0 - 1e-9);
   s1 = std::min(1.0, s1 + 1e-9);

@@ -108,6 +108,11 @@ class MarkRecorder {
   void path_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end);
   void shadow_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end);
   void mark_box(int list, const glm::dvec3& lo, const glm::dvec3& hi);
+  /// Narrows [t0, t1] to where the box [lo_at_0 + t lo_slope, hi_at_0 + t hi_slope] (padded)
+  /// meets the grid; false when it never does there. Path tubes (t along the rays) and shadow
+  /// sweeps (t from the surface to the light) both have bounds linear in t.
+  [[nodiscard]] bool meets_grid(const glm::dvec3& lo_at_0, const glm::dvec3& lo_slope, const glm::dvec3& hi_at_0,
+                                const glm::dvec3& hi_slope, double& t0, double& t1) const;
   /// Groups waiting to be marked, merged with the next ones while they run side by side.
   void add_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, const glm::dvec3& d_lo, const glm::dvec3& d_hi,
                 double t_lo, double t_hi);
