@@ -20,13 +20,15 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
-  libassimp-dev libtinyobjloader-dev
+  libtinygltf-dev libtinyobjloader-dev
   libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev
 )
 if [ "$build_only" = 0 ]; then
   packages+=(
     ccache git
     libgtest-dev libgmock-dev libbenchmark-dev libembree-dev
+    # tests/fuzz: libFuzzer targets (clang with its runtime); scene_load_timing compares Assimp
+    clang-14 libclang-rt-14-dev libassimp-dev
     iproute2 iperf3 python3 gnuplot-nox
     # tests/deploy: a Docker engine started by hand (no systemd), compose v1, a base image
     # made without a registry (debootstrap + docker import)

@@ -25,6 +25,12 @@ FileBytes::FileBytes(const std::filesystem::path& path) {
     ::close(fd);
     throw_at(name, 0, "cannot read the file (a directory?)");
   }
+  // A device (/dev/zero, a terminal) never ends or blocks for input: a file named by a scene
+  // must be a regular file or a pipe.
+  if (!S_ISREG(st.st_mode) && !S_ISFIFO(st.st_mode)) {
+    ::close(fd);
+    throw_at(name, 0, "not a regular file or a pipe (a device or socket?)");
+  }
   if (S_ISREG(st.st_mode) && st.st_size > 0) {
     void* map = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ,
                        MAP_PRIVATE | MAP_POPULATE, fd, 0);

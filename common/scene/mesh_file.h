@@ -52,7 +52,8 @@ struct MeshFile {
 [[nodiscard]] MeshFile load_obj(const std::filesystem::path& path);
 /// PLY: ascii, binary_little_endian and binary_big_endian 1.0.
 [[nodiscard]] MeshFile load_ply(const std::filesystem::path& path);
-/// glTF 2.0 through Assimp: node matrices and instancing baked into world space.
+/// glTF 2.0 (TinyGLTF for the container, accessor ranges checked here): node matrices and
+/// instancing baked into world space; points and lines skipped; strips and fans triangulated.
 [[nodiscard]] MeshFile load_gltf(const std::filesystem::path& path);
 /// NFF as written by SPD 3.14 (and the three-line cone form of NFF.TXT).
 [[nodiscard]] MeshFile load_nff(const std::filesystem::path& path,

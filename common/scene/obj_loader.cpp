@@ -254,6 +254,7 @@ class ObjReader {
 
   void load_libraries(std::string_view names) {
     if (names.empty()) cursor_.fail("mtllib without a file name");
+    if (names.find('\0') != std::string_view::npos) cursor_.fail("mtllib: file name contains a NUL byte");
     const fs::path folder = path_.parent_path();
     std::vector<std::string> files;
     std::error_code ec;
@@ -273,7 +274,11 @@ class ObjReader {
         missing_library_ = true;
         continue;
       }
-      read_mtl(mtl, materials_, material_by_name_);
+      try {
+        read_mtl(mtl, materials_, material_by_name_);
+      } catch (const Error& e) {
+        cursor_.fail(std::string("material library: ") + e.what());  // where the OBJ names it
+      }
     }
   }
 

@@ -476,6 +476,8 @@ class SceneJsonLoader {
   /// Checks that the mesh file exists (before anything is loaded) and names it canonically.
   void resolve(MeshEntry& entry) const {
     if (entry.file.empty()) r_.fail(file_field(entry), "empty file name");
+    // A NUL would end the name the system sees early: another file than the one written.
+    if (entry.file.find('\0') != std::string::npos) r_.fail(file_field(entry), "file name contains a NUL byte");
     entry.resolved =
         fs::path(entry.file).is_absolute() ? fs::path(entry.file) : folder_ / entry.file;
     std::error_code ec;

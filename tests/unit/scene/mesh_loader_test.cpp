@@ -6,6 +6,7 @@
 #include <limits>
 #include <string>
 
+#include "common/scene/file_bytes.h"
 #include "common/scene/mesh_file.h"
 #include "test_files.h"
 
@@ -189,6 +190,25 @@ TEST(MeshFile, MissingFileAndUnknownFormatAreRejected) {
   const auto gz = dir.write("x.nff.gz", "\x1f\x8b");
   EXPECT_NE(error_of([&] { (void)load_mesh_file(gz); }).find("decompress"), std::string::npos);
   EXPECT_NE(error_of([&] { (void)load_obj(dir.path()); }).find("cannot"), std::string::npos);
+}
+
+TEST(MeshFile, DevicesAreNotRead) {
+  // /dev/zero never ends: read, it would fill the memory (found by fuzzing, tests/fuzz).
+  const std::string message = error_of([&] { (void)FileBytes("/dev/zero"); });
+  EXPECT_NE(message.find("/dev/zero"), std::string::npos) << message;
+  EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+}
+
+TEST(ObjLoader, MaterialLibraryErrorsNameTheObjLine) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "lib.mtl");  // a folder named like a library
+  const auto obj = dir.write("m.obj", "v 0 0 0\nv 1 0 0\nmtllib lib.mtl\nv 0 1 0\nf 1 2 3\n");
+  const std::string message = error_of([&] { (void)load_obj(obj); });
+  EXPECT_NE(message.find("m.obj:3: material library: "), std::string::npos) << message;
+  EXPECT_NE(message.find("lib.mtl"), std::string::npos) << message;
+  const auto nul = dir.write("nul.obj", std::string("mtllib \0x.mtl\nv 0 0 0\n", 22));
+  EXPECT_NE(error_of([&] { (void)load_obj(nul); }).find("nul.obj:1: mtllib: file name contains a NUL byte"),
+            std::string::npos);
 }
 
 // --- PLY --------------------------------------------------------------------------------
@@ -484,6 +504,65 @@ TEST(GltfLoader, PositionsBeyondTheFloatRangeAreRejected) {
   const std::string message = error_of([&] { (void)load_gltf(dir.write("far.gltf", gltf)); });
   EXPECT_NE(message.find("far.gltf: glTF: mesh"), std::string::npos) << message;
   EXPECT_NE(message.find("outside the float range"), std::string::npos) << message;
+}
+
+// An accessor reaching past its buffer view: Debian's Assimp read past the buffer here (a heap
+// overflow found by fuzz_gltf, tests/fuzz/regressions/gltf); every range is checked now.
+TEST(GltfLoader, AccessorBeyondItsBufferViewIsRejected) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string count = R"("count": 3, "type": "VEC3")";
+  gltf.replace(gltf.find(count), count.size(), R"("count": 30, "type": "VEC3")");
+  std::string message = error_of([&] { (void)load_gltf(dir.write("long.gltf", gltf)); });
+  EXPECT_NE(message.find("long.gltf: glTF: mesh"), std::string::npos) << message;
+  EXPECT_NE(message.find("30 elements from byte 0 exceed buffer view 0 of 36 bytes"), std::string::npos) << message;
+
+  gltf = test::small_gltf();
+  const std::string view = R"({"buffer": 0, "byteOffset": 36, "byteLength": 12})";
+  gltf.replace(gltf.find(view), view.size(), R"({"buffer": 0, "byteOffset": 40, "byteLength": 12})");
+  message = error_of([&] { (void)load_gltf(dir.write("view.gltf", gltf)); });
+  EXPECT_NE(message.find("buffer view 1 (bytes 40 + 12) exceeds its buffer of 48 bytes"), std::string::npos) << message;
+}
+
+TEST(GltfLoader, NodesMustFormATree) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string nodes = R"({"mesh": 0, "translation": [10, 0, 0]})";
+  // Node 0 lists node 1 as its child, but node 1 is also a root of the scene.
+  gltf.replace(gltf.find(nodes), nodes.size(), R"({"mesh": 0, "translation": [10, 0, 0], "children": [1]})");
+  const std::string message = error_of([&] { (void)load_gltf(dir.write("dag.gltf", gltf)); });
+  EXPECT_NE(message.find("dag.gltf: glTF: node 1 is a scene root and another node's child"), std::string::npos)
+      << message;
+}
+
+TEST(GltfLoader, StripsAndFansFollowTheSpecification) {
+  TempDir dir;
+  // Four vertices of a unit square, no indices: a strip gives (0 1 2) (1 3 2), a fan (1 2 0) (2 3 0).
+  std::string buffer;
+  for (const float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 1.f, 1.f, 0.f}) test::append_le(buffer, v);
+  for (const int mode : {5, 6}) {
+    const std::string gltf =
+        R"({"asset": {"version": "2.0"}, "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": )" +
+        std::to_string(mode) + R"(}]}],
+      "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,)" +
+        test::base64(buffer) + R"("}],
+      "bufferViews": [{"buffer": 0, "byteLength": 48}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+    const Mesh mesh = load_gltf(dir.write("square.gltf", gltf)).mesh;
+    ASSERT_EQ(mesh.triangles.size(), 2u) << "mode " << mode;
+    const auto at = [&](std::size_t t, int k) { return mesh.positions[mesh.triangles[t][k]]; };
+    if (mode == 5) {
+      EXPECT_EQ(at(1, 0), glm::vec3(1, 0, 0));
+      EXPECT_EQ(at(1, 1), glm::vec3(1, 1, 0));
+      EXPECT_EQ(at(1, 2), glm::vec3(0, 1, 0));
+    } else {
+      EXPECT_EQ(at(0, 2), glm::vec3(0, 0, 0));
+      EXPECT_EQ(at(1, 0), glm::vec3(0, 1, 0));
+      EXPECT_EQ(at(1, 1), glm::vec3(1, 1, 0));
+    }
+  }
 }
 
 TEST(GltfLoader, GarbageIsRejected) {
