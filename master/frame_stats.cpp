@@ -85,38 +85,52 @@ std::string frame_json(const FrameStats& s) {
   return j.dump();
 }
 
-RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
-  RunSummary r;
-  r.frames = static_cast<std::uint32_t>(frames.size());
-  r.total_s = total_s;
-  if (frames.empty()) return r;
-  std::vector<double> fps, bound, bytes;
-  std::uint64_t raw = 0, pixel = 0, tiles = 0;
-  std::map<std::string, std::uint64_t> by_worker;
-  for (const FrameStats& f : frames) {
-    fps.push_back(f.fps());
-    if (f.bound_fps() > 0) bound.push_back(f.bound_fps());
-    bytes.push_back(static_cast<double>(f.wire_bytes));
-    raw += f.raw_bytes;
-    pixel += f.pixel_bytes;
-    r.duplicate_tiles += f.duplicate_tiles;
-    for (const auto& [name, n] : f.tiles_by_worker) {
-      by_worker[name] += n;
-      tiles += n;
-    }
+void RunAccumulator::add(const FrameStats& f) {
+  fps_.push_back(static_cast<float>(f.fps()));
+  if (f.bound_fps() > 0) bound_fps_.push_back(static_cast<float>(f.bound_fps()));
+  bytes_.push_back(static_cast<float>(f.wire_bytes));
+  raw_ += f.raw_bytes;
+  pixel_ += f.pixel_bytes;
+  duplicate_tiles_ += f.duplicate_tiles;
+  for (const auto& [name, n] : f.tiles_by_worker) {
+    by_worker_[name] += n;
+    tiles_ += n;
   }
-  r.median_fps = median(fps);
-  r.mean_fps = total_s > 0 ? frames.size() / total_s : 0;
-  r.median_bound_fps = median(bound);
-  r.median_bytes_per_frame = median(bytes);
-  r.compression_ratio = pixel > 0 ? static_cast<double>(raw) / pixel : 1.0;
-  for (const auto& [name, n] : by_worker) r.worker_share[name] = tiles ? static_cast<double>(n) / tiles : 0;
-  r.wire_format = frames.back().wire_format;
-  r.compression = frames.back().compression;
-  r.link_source = frames.back().link_source;
-  r.link_bytes_per_s = frames.back().link_bytes_per_s;
-  r.link_line_mbit_per_s = frames.back().link_line_mbit_per_s;
+  wire_format_ = f.wire_format;
+  compression_ = f.compression;
+  link_source_ = f.link_source;
+  link_bytes_per_s_ = f.link_bytes_per_s;
+  link_line_mbit_per_s_ = f.link_line_mbit_per_s;
+}
+
+RunSummary RunAccumulator::summarize(double total_s) const {
+  RunSummary r;
+  r.frames = frames();
+  r.total_s = total_s;
+  if (fps_.empty()) return r;
+  const auto median_of = [](const std::vector<float>& v) {
+    return median(std::vector<double>(v.begin(), v.end()));
+  };
+  r.median_fps = median_of(fps_);
+  r.mean_fps = total_s > 0 ? fps_.size() / total_s : 0;
+  r.median_bound_fps = median_of(bound_fps_);
+  r.median_bytes_per_frame = median_of(bytes_);
+  r.compression_ratio = pixel_ > 0 ? static_cast<double>(raw_) / pixel_ : 1.0;
+  r.duplicate_tiles = duplicate_tiles_;
+  for (const auto& [name, n] : by_worker_) r.worker_share[name] = tiles_ ? static_cast<double>(n) / tiles_ : 0;
+  r.wire_format = wire_format_;
+  r.compression = compression_;
+  r.link_source = link_source_;
+  r.link_bytes_per_s = link_bytes_per_s_;
+  r.link_line_mbit_per_s = link_line_mbit_per_s_;
+  r.tiles = tiles_;
   return r;
+}
+
+RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
+  RunAccumulator run;
+  for (const FrameStats& f : frames) run.add(f);
+  return run.summarize(total_s);
 }
 
 std::string format_summary(const RunSummary& s) {
@@ -132,6 +146,10 @@ std::string format_summary(const RunSummary& s) {
   out += "; share";
   for (const auto& [name, share] : s.worker_share) out += fmt::format(" {}:{:.1f}%", name, 100.0 * share);
   if (s.duplicate_tiles > 0) out += fmt::format("; {} duplicate tiles dropped", s.duplicate_tiles);
+  if (s.frames > 0 && s.tiles > 0) {
+    out += fmt::format("; master CPU {:.2f} s, network thread {:.3f} s ({:.2f} ms/frame, {:.1f} us/tile)", s.process_cpu_s,
+                       s.io_cpu_s, 1e3 * s.io_cpu_s / s.frames, 1e6 * s.io_cpu_s / static_cast<double>(s.tiles));
+  }
   return out;
 }
 
@@ -153,6 +171,9 @@ std::string summary_json(const RunSummary& s) {
   j["link_mbit_per_s"] = s.link_bytes_per_s * 8 / 1e6;
   j["link_line_mbit_per_s"] = s.link_line_mbit_per_s;
   j["link_source"] = s.link_source;
+  j["tiles"] = s.tiles;
+  j["master_io_cpu_s"] = s.io_cpu_s;
+  j["master_process_cpu_s"] = s.process_cpu_s;
   return j.dump();
 }
 

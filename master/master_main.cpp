@@ -48,6 +48,9 @@ int run(int argc, char** argv) {
                                             "Ethernet leaves for messages (default: measured on the first worker's connection)")
       ->check(CLI::Range(0.001, 1e9));
   app.add_option("--token-file", token_file, "file holding the shared token workers must prove (HMAC, never sent)");
+  app.add_option("--tls-cert", o.tls_cert, "PEM certificate chain: every connection uses TLS (workers need --tls-ca)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--tls-key", o.tls_key, "PEM private key of --tls-cert")->check(CLI::ExistingFile);
   app.add_option("--stats-json", o.stats_json, "write per-frame figures and a summary as JSON lines to this file");
   app.add_option("--min-workers", o.min_workers, "start rendering once this many workers are ready")
       ->check(CLI::Range(1, 100000))
@@ -59,6 +62,17 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(2, 4096));
   app.add_option("--heartbeat-timeout", o.heartbeat_timeout_ms, "drop a worker silent for this many ms")
       ->check(CLI::Range(300, 3600000))
+      ->capture_default_str();
+  app.add_option("--max-connections-per-host", o.max_connections_per_host,
+                 "connections one peer address may hold open at once (more are closed at once)")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--max-unauthenticated-per-host", o.max_unauthenticated_per_host,
+                 "of those, connections still authenticating")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--auth-timeout", o.auth_timeout_ms, "close a connection that has not authenticated within this many ms")
+      ->check(CLI::Range(100, 3600000))
       ->capture_default_str();
   app.add_option("--drain-seconds", o.drain_seconds, "after SIGINT/SIGTERM, time to finish the frames in flight")
       ->check(CLI::Range(0, 3600))

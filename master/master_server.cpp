@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <csignal>
+#include <ctime>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -58,6 +59,7 @@ struct Worker {
 
   TileQueue::WorkerId id = 0;
   std::shared_ptr<net::Connection> conn;
+  std::string host;   // the peer's address without the port (connection limits)
   std::string label;  // "w3", used in the per-frame tile counts
   State state = State::AwaitHello;
   proto::Nonce nonce{};
@@ -109,6 +111,10 @@ class Master {
         acceptor_(io_),
         signals_(io_, SIGINT, SIGTERM),
         tick_(io_) {
+    if (!options_.tls_cert.empty() || !options_.tls_key.empty()) {
+      if (options_.tls_cert.empty() || options_.tls_key.empty()) throw Error("--tls-cert and --tls-key go together");
+      tls_ = net::tls_server_context(options_.tls_cert, options_.tls_key);
+    }
     if (!options_.stats_json.empty()) {
       stats_file_.open(options_.stats_json, std::ios::out | std::ios::trunc);
       if (!stats_file_) throw Error("--stats-json: cannot open " + options_.stats_json + " for writing");
@@ -167,10 +173,14 @@ class Master {
         spdlog::error("{}", fatal_error_);
       }
     }
-    const double total_s = run_started_ && !finished_.empty()
+    const double total_s = run_started_ && finished_.frames() > 0
                                ? std::chrono::duration<double>(last_complete_ - run_start_).count()
                                : 0.0;
-    const RunSummary summary = summarize(finished_, total_s);
+    RunSummary summary = finished_.summarize(total_s);
+    if (run_started_) {
+      summary.io_cpu_s = cpu_seconds(CLOCK_THREAD_CPUTIME_ID) - io_cpu_at_start_;  // this is the io thread
+      summary.process_cpu_s = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID) - process_cpu_at_start_;
+    }
     spdlog::info("{}", format_summary(summary));
     if (stats_file_.is_open()) {
       stats_file_ << summary_json(summary) << '\n';
@@ -204,8 +214,9 @@ class Master {
     const asio::ip::tcp::endpoint local = acceptor_.local_endpoint();
     const std::string address = local.address().to_string();
     listening_on_ = (local.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(local.port());
-    spdlog::info("rtc-master {} listening on {} ({}), waiting for {} worker{}", build_id(), listening_on_,
-                 options_.token.empty() ? "no token: loopback only" : "token required", options_.min_workers,
+    spdlog::info("rtc-master {} listening on {} ({}, {}), waiting for {} worker{}", build_id(), listening_on_,
+                 options_.token.empty() ? "no token: loopback only" : "token required", tls_ ? "TLS" : "no TLS",
+                 options_.min_workers,
                  options_.min_workers == 1 ? "" : "s");
     if (!options_.ready_file.empty()) {
       const std::string tmp = options_.ready_file + ".tmp";
@@ -237,11 +248,63 @@ class Master {
 
   void on_accept(asio::ip::tcp::socket socket) {
     const std::string peer = net::peer_name(socket);
+    asio::error_code endpoint_ec;
+    const std::string host = socket.remote_endpoint(endpoint_ec).address().to_string();
+    // TLS handshakes under way count as connections that have not authenticated.
+    const auto handshaking = tls_handshakes_.find(host);
+    int unauthenticated = handshaking == tls_handshakes_.end() ? 0 : handshaking->second;
+    int open = unauthenticated;
+    for (const auto& [other_id, other] : workers_) {
+      if (other->state == Worker::State::Closed || other->host != host) continue;
+      ++open;
+      unauthenticated += other->state == Worker::State::AwaitHello || other->state == Worker::State::AwaitAuth;
+    }
+    // Refused before anything is sent or allocated for it: closing the socket is the answer.
+    if (open >= options_.max_connections_per_host || unauthenticated >= options_.max_unauthenticated_per_host) {
+      spdlog::warn("refused connection from {}: {} already has {} open connection(s), {} not authenticated "
+                   "(limits {} and {}: --max-connections-per-host, --max-unauthenticated-per-host)",
+                   peer, host, open, unauthenticated, options_.max_connections_per_host,
+                   options_.max_unauthenticated_per_host);
+      socket.close(endpoint_ec);
+      return;
+    }
+    if (!tls_) {
+      add_connection(std::make_shared<net::Connection>(std::move(socket), peer), peer, host);
+      return;
+    }
+    // TLS: the handshake first, within the time a connection has to authenticate; the rtc
+    // protocol (Challenge first) starts once it is done.
+    auto stream = std::make_shared<net::TlsStream>(std::move(socket), *tls_);
+    auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::milliseconds(options_.auth_timeout_ms));
+    timer->async_wait([stream](const asio::error_code& ec) {
+      if (ec) return;
+      asio::error_code ignored;
+      stream->next_layer().close(ignored);  // the handshake fails with operation_aborted
+    });
+    ++tls_handshakes_[host];
+    stream->async_handshake(asio::ssl::stream_base::server, [this, stream, timer, peer, host](const asio::error_code& ec) {
+      timer->cancel();
+      if (--tls_handshakes_[host] == 0) tls_handshakes_.erase(host);
+      if (done_) return;
+      if (ec) {
+        spdlog::warn("TLS handshake with {} failed: {}", peer,
+                     ec == asio::error::operation_aborted
+                         ? "no handshake within " + std::to_string(options_.auth_timeout_ms) + " ms (a worker without --tls-ca?)"
+                         : ec.message());
+        return;
+      }
+      add_connection(std::make_shared<net::Connection>(stream, peer), peer, host);
+    });
+  }
+
+  // A new connection (TLS already established, if any): challenge it to authenticate.
+  void add_connection(std::shared_ptr<net::Connection> conn, const std::string& peer, const std::string& host) {
     const TileQueue::WorkerId id = ++last_worker_id_;
     auto w = std::make_unique<Worker>();
     w->id = id;
     w->label = "w" + std::to_string(id);
-    w->conn = std::make_shared<net::Connection>(std::move(socket), peer);
+    w->host = host;
+    w->conn = std::move(conn);
     w->nonce = proto::random_nonce();
     w->last_heard = Clock::now();
     w->auth_timer = std::make_unique<asio::steady_timer>(io_, std::chrono::milliseconds(options_.auth_timeout_ms));
@@ -593,6 +656,8 @@ class Master {
     if (run_started_ || ready_workers() < static_cast<std::size_t>(options_.min_workers)) return;
     run_started_ = true;
     run_start_ = Clock::now();
+    io_cpu_at_start_ = cpu_seconds(CLOCK_THREAD_CPUTIME_ID);
+    process_cpu_at_start_ = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID);
     last_complete_ = run_start_;
     spdlog::info("{} worker{} ready: rendering frames {}-{}{}", ready_workers(), ready_workers() == 1 ? "" : "s",
                  options_.first_frame, options_.last_frame,
@@ -769,11 +834,11 @@ class Master {
         stats_file_ << frame_json(f.stats) << '\n';
         stats_file_.flush();
         if (!stats_file_) {
-          finished_.push_back(std::move(f.stats));
+          finished_.add(f.stats);
           return fatal("--stats-json " + options_.stats_json + ": write failed (disk full?)");
         }
       }
-      finished_.push_back(std::move(f.stats));
+      finished_.add(f.stats);
     }
     if (run_started_ && !more_frames() && queue_.frames_open() == 0) {
       shutdown(stopping_ ? "the master was stopped" : "all frames done");
@@ -898,7 +963,16 @@ class Master {
   proto::Digest scene_hash_;
   std::string scene_name_;
 
+  static double cpu_seconds(clockid_t clock) {
+    timespec ts{};
+    ::clock_gettime(clock, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  }
+
+  double io_cpu_at_start_ = 0, process_cpu_at_start_ = 0;  // at the first frame's start
   asio::io_context io_;
+  std::shared_ptr<asio::ssl::context> tls_;       // --tls-cert/--tls-key given
+  std::map<std::string, int> tls_handshakes_;      // per peer address, TLS handshakes under way
   asio::ip::tcp::acceptor acceptor_;
   asio::signal_set signals_;
   asio::steady_timer tick_;
@@ -930,7 +1004,7 @@ class Master {
   std::string fatal_error_;
   std::unique_ptr<FrameWriter> writer_;
   std::ofstream stats_file_;
-  std::vector<FrameStats> finished_;
+  RunAccumulator finished_;  // every frame written, for the summary
 };
 
 }  // namespace

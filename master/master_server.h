@@ -18,6 +18,9 @@ namespace rtc {
 struct MasterOptions {
   std::string listen = "127.0.0.1:7878";  ///< HOST:PORT; port 0 picks a free one
   std::string token;                      ///< empty: no authentication (loopback only)
+  /// TLS for every connection (OpenSSL through Asio): the master's certificate chain and private
+  /// key, PEM files; both empty: plain TCP.
+  std::string tls_cert, tls_key;
   int tile_size = 32;
   WireFormat wire = WireFormat::Rgba8;
   Compression compression = kDefaultCompression;
@@ -36,6 +39,13 @@ struct MasterOptions {
   int heartbeat_ms = 1000;           ///< at most heartbeat_timeout_ms / 3 (the master lowers it)
   int heartbeat_timeout_ms = 10000;  ///< silence after which a worker is dropped
   int auth_timeout_ms = 10000;       ///< time a new connection has to authenticate
+  /// Connections one peer address may hold open at once, authenticated or not (64 local workers
+  /// on one host fit; a runaway script does not exhaust the master's file descriptors).
+  int max_connections_per_host = 256;
+  /// Of those, connections that have not authenticated yet: a host cannot park many idle
+  /// handshakes (each for up to auth_timeout_ms) to keep its real workers out. 64 lets a host
+  /// start 64 workers at once without one being turned away.
+  int max_unauthenticated_per_host = 64;
   int drain_seconds = 30;            ///< after SIGINT/SIGTERM: time to finish frames in flight
   std::uint32_t probe_bytes = 4u << 20;  ///< link measurement size (0.34 s at 100 Mbit/s)
   /// Object-space temporal coherence: after a frame, hand out only the tiles whose rays

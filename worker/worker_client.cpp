@@ -302,6 +302,10 @@ class WorkerClient {
     render_options_.isa = options_.isa;
     render_options_.kd_clip = options_.kd_clip;
     isa_ = options_.isa.value_or(best_isa());
+    if (!options_.tls_ca.empty()) {
+      tls_ = net::tls_client_context(options_.tls_ca);
+      if (options_.tls_server_name.empty()) options_.tls_server_name = target_.host;
+    }
   }
 
   int run() {
@@ -349,7 +353,9 @@ class WorkerClient {
                                                     if (e) return retry(e == asio::error::operation_aborted
                                                                             ? std::string("connect timed out")
                                                                             : e.message());
-                                                    on_connected(std::move(*socket));
+                                                    if (tls_) return tls_handshake(std::move(*socket));
+                                                    const std::string peer = "master " + net::peer_name(*socket);
+                                                    on_connected(std::make_shared<net::Connection>(std::move(*socket), peer));
                                                   });
                             });
   }
@@ -377,12 +383,56 @@ class WorkerClient {
     backoff_ms_ = std::min(backoff_ms_ * 2, 5000);
   }
 
-  void on_connected(asio::ip::tcp::socket socket) {
+  // TLS: verify the master's certificate (signed by --tls-ca, naming the host), then the rtc
+  // protocol over the encrypted stream. A certificate that fails verification is not retried:
+  // waiting cannot make it trusted.
+  void tls_handshake(asio::ip::tcp::socket socket) {
+    const std::string peer = "master " + net::peer_name(socket);
+    auto stream = std::make_shared<net::TlsStream>(std::move(socket), *tls_);
+    // host_name_verification fails without saying why; note when it is the name that failed.
+    auto name_failed = std::make_shared<bool>(false);
+    stream->set_verify_callback([check = asio::ssl::host_name_verification(options_.tls_server_name), name_failed](
+                                    bool preverified, asio::ssl::verify_context& ctx) mutable {
+      const bool ok = check(preverified, ctx);
+      if (preverified && !ok) *name_failed = true;
+      return ok;
+    });
+    // SNI, for a master behind a TLS-terminating proxy; not for an IP address (RFC 6066 3).
+    asio::error_code ignored;
+    asio::ip::make_address(options_.tls_server_name, ignored);
+    if (ignored) SSL_set_tlsext_host_name(stream->native_handle(), options_.tls_server_name.c_str());
+    auto timeout = std::make_shared<asio::steady_timer>(io_, std::chrono::seconds(10));
+    timeout->async_wait([stream](const asio::error_code& ec) {
+      if (ec) return;
+      asio::error_code e;
+      stream->next_layer().close(e);
+    });
+    stream->async_handshake(asio::ssl::stream_base::client, [this, stream, timeout, peer, name_failed](const asio::error_code& ec) {
+      timeout->cancel();
+      if (finished_) return;
+      if (!ec) return on_connected(std::make_shared<net::Connection>(stream, peer));
+      const long verify = SSL_get_verify_result(stream->native_handle());
+      if (verify != X509_V_OK) {
+        const std::string why =
+            *name_failed ? "it does not name \"" + options_.tls_server_name + "\" (give the name it carries with --tls-server-name)"
+                         : std::string(X509_verify_cert_error_string(verify));
+        spdlog::error("TLS: {}'s certificate is not trusted: {} (--tls-ca {}); exiting", peer, why, options_.tls_ca);
+        exit_code_ = 1;
+        return finish(false);
+      }
+      const std::string why = ec == asio::error::operation_aborted ? std::string("no TLS handshake within 10 s")
+                                                                    : "TLS handshake failed: " + ec.message();
+      spdlog::warn("connection to {} failed: {} (is the master running without --tls-cert?)", options_.connect, why);
+      retry(why, /*connected=*/true);
+    });
+  }
+
+  void on_connected(std::shared_ptr<net::Connection> conn) {
     ++session_;
     pool_.set_session(session_);
     preparer_.clear();
-    const std::string peer = net::peer_name(socket);
-    conn_ = std::make_shared<net::Connection>(std::move(socket), "master " + peer);
+    const std::string peer = conn->peer();
+    conn_ = std::move(conn);
     welcomed_ = false;
     tiles_outstanding_ = 0;
     probes_this_session_ = 0;
@@ -399,7 +449,7 @@ class WorkerClient {
                    std::visit([&](auto&& msg) { handle(std::move(msg)); }, std::move(m));
                  },
                  [this, session](const std::string& reason) { on_close(session, reason); });
-    spdlog::debug("connected to {}", peer);
+    spdlog::debug("connected to {}{}", peer, conn_->tls() ? " (TLS)" : "");
     arm_watchdog();
   }
 
@@ -675,6 +725,7 @@ class WorkerClient {
   asio::signal_set signals_;
   asio::steady_timer retry_timer_, watchdog_;
   std::shared_ptr<net::Connection> conn_;
+  std::shared_ptr<asio::ssl::context> tls_;  // --tls-ca given
   std::uint64_t session_ = 0;
   std::uint64_t hello_sent_this_session_ = 0;
   bool welcomed_ = false, goodbye_ = false, auth_rejected_ = false, finished_ = false, retry_logged_ = false;

@@ -14,6 +14,11 @@ namespace rtc {
 struct WorkerOptions {
   std::string connect = "127.0.0.1:7878";  ///< the master's HOST:PORT
   std::string token;                       ///< empty: none (the master must not require one)
+  /// TLS: PEM certificates to trust (a CA, or the master's self-signed certificate); the
+  /// master's certificate must be signed by one of them and name the --connect host (or
+  /// tls_server_name). Empty: plain TCP.
+  std::string tls_ca;
+  std::string tls_server_name;  ///< the name the master's certificate must carry; empty: the --connect host
   int threads = 0;                         ///< render threads; 0: all cores
   std::optional<Isa> isa;                  ///< empty: the best this CPU supports
   KdClip kd_clip = KdClip::Auto;           ///< kd-tree perfect splits (KdBuildOptions::clip)

@@ -21,6 +21,9 @@ int run(int argc, char** argv) {
   app.add_option("--connect", o.connect, "the master's HOST:PORT")->capture_default_str();
   app.add_option("--threads", o.threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--token-file", token_file, "file holding the shared token the master requires");
+  app.add_option("--tls-ca", o.tls_ca, "PEM certificates to trust: connect over TLS and verify the master's certificate")
+      ->check(CLI::ExistingFile);
+  app.add_option("--tls-server-name", o.tls_server_name, "the name the master's certificate must carry (default: the --connect host)");
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
   rtc::add_kd_clip_option(app, kd_clip);
   app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");

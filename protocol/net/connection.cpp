@@ -35,15 +35,68 @@ HostPort parse_host_port(const std::string& text, const std::string& what) {
   return hp;
 }
 
+namespace {
+
+void require_tls_1_2(asio::ssl::context& context) {
+  context.set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
+                      asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 | asio::ssl::context::no_tlsv1_1 |
+                      asio::ssl::context::single_dh_use);
+}
+
+std::string tls_error(const asio::system_error& e) {
+  std::string what = e.code().message();
+  return what.empty() ? e.what() : what;
+}
+
+}  // namespace
+
+std::shared_ptr<asio::ssl::context> tls_server_context(const std::string& cert_file, const std::string& key_file) {
+  auto context = std::make_shared<asio::ssl::context>(asio::ssl::context::tls_server);
+  require_tls_1_2(*context);
+  try {
+    context->use_certificate_chain_file(cert_file);
+  } catch (const asio::system_error& e) {
+    throw Error("--tls-cert " + cert_file + ": cannot use it as a PEM certificate chain: " + tls_error(e));
+  }
+  try {
+    context->use_private_key_file(key_file, asio::ssl::context::pem);
+  } catch (const asio::system_error& e) {
+    throw Error("--tls-key " + key_file + ": cannot use it as the PEM private key of --tls-cert: " + tls_error(e));
+  }
+  return context;
+}
+
+std::shared_ptr<asio::ssl::context> tls_client_context(const std::string& ca_file) {
+  auto context = std::make_shared<asio::ssl::context>(asio::ssl::context::tls_client);
+  require_tls_1_2(*context);
+  try {
+    context->load_verify_file(ca_file);
+  } catch (const asio::system_error& e) {
+    throw Error("--tls-ca " + ca_file + ": cannot load it as PEM certificates: " + tls_error(e));
+  }
+  context->set_verify_mode(asio::ssl::verify_peer | asio::ssl::verify_fail_if_no_peer_cert);
+  return context;
+}
+
+bool is_end_of_stream(const asio::error_code& ec) {
+  return ec == asio::error::eof || ec == asio::ssl::error::stream_truncated;
+}
+
 Connection::Connection(asio::ip::tcp::socket socket, std::string peer)
     : socket_(std::move(socket)), peer_(std::move(peer)) {
   asio::error_code ec;
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // tiles are latency-bound at frame ends
 }
 
+Connection::Connection(std::shared_ptr<TlsStream> stream, std::string peer)
+    : socket_(stream->get_executor()), tls_(std::move(stream)), peer_(std::move(peer)) {
+  asio::error_code ec;
+  tls_->next_layer().set_option(asio::ip::tcp::no_delay(true), ec);
+}
+
 Connection::~Connection() {
   asio::error_code ec;
-  socket_.close(ec);
+  tcp().close(ec);
 }
 
 void Connection::start(MessageHandler on_message, CloseHandler on_close) {
@@ -56,7 +109,7 @@ void Connection::read_header() {
   if (closed_) return;
   auto self = shared_from_this();
   reading_ = true;
-  asio::async_read(socket_, asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
+  auto on_header = [this, self](const asio::error_code& ec, std::size_t) {
     reading_ = false;
     if (closed_) return;
     if (closing_after_flush_) {
@@ -64,7 +117,7 @@ void Connection::read_header() {
       return;
     }
     if (ec) {
-      finish(ec == asio::error::eof ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
+      finish(is_end_of_stream(ec) ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
       return;
     }
     header_arrived_ = std::chrono::steady_clock::now();
@@ -87,14 +140,15 @@ void Connection::read_header() {
       return;
     }
     read_payload(header.header);
-  });
+  };
+  with_stream([&](auto& stream) { asio::async_read(stream, asio::buffer(header_buf_), std::move(on_header)); });
 }
 
 void Connection::read_payload(protocol::Header header) {
   payload_.resize(header.payload_length);
   auto self = shared_from_this();
   reading_ = true;
-  asio::async_read(socket_, asio::buffer(payload_), [this, self, header](const asio::error_code& ec, std::size_t) {
+  auto on_payload = [this, self, header](const asio::error_code& ec, std::size_t) {
     reading_ = false;
     if (closed_) return;
     if (closing_after_flush_) {
@@ -104,7 +158,7 @@ void Connection::read_payload(protocol::Header header) {
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +
-             (ec == asio::error::eof ? std::string("connection closed") : ec.message()));
+             (is_end_of_stream(ec) ? std::string("connection closed") : ec.message()));
       return;
     }
     protocol::PayloadResult result = protocol::decode_payload(header, payload_);
@@ -118,7 +172,8 @@ void Connection::read_payload(protocol::Header header) {
     if (payload_.capacity() > (1u << 20)) std::vector<std::uint8_t>().swap(payload_);
     on_message_(std::move(result.message), wire);
     read_header();
-  });
+  };
+  with_stream([&](auto& stream) { asio::async_read(stream, asio::buffer(payload_), std::move(on_payload)); });
 }
 
 void Connection::send(const protocol::Message& message) {
@@ -146,8 +201,10 @@ void Connection::write_next() {
       // Closing with the peer's bytes unread would send it a reset, which can make it fail a
       // write before it reads our last message (a worker then took the master's Goodbye for a
       // lost connection and went on retrying).
+      // Over TLS the same TCP half-close, without close_notify: the peer reads it as the end of
+      // the stream (is_end_of_stream), and no TLS shutdown exchange can stall the close.
       asio::error_code ec;
-      socket_.shutdown(asio::ip::tcp::socket::shutdown_send, ec);
+      tcp().shutdown(asio::ip::tcp::socket::shutdown_send, ec);
       if (!reading_) drain();
       return;
     }
@@ -156,7 +213,7 @@ void Connection::write_next() {
   }
   writing_ = true;
   auto self = shared_from_this();
-  asio::async_write(socket_, asio::buffer(queue_.front()), [this, self](const asio::error_code& ec, std::size_t n) {
+  auto on_written = [this, self](const asio::error_code& ec, std::size_t n) {
     if (closed_) return;
     if (ec) {
       finish("writing to " + peer_ + ": " + ec.message());
@@ -166,7 +223,8 @@ void Connection::write_next() {
     queued_bytes_ -= queue_.front().size();
     queue_.pop_front();
     write_next();
-  });
+  };
+  with_stream([&](auto& stream) { asio::async_write(stream, asio::buffer(queue_.front()), std::move(on_written)); });
 }
 
 void Connection::close(const std::string& reason) { finish(reason); }
@@ -185,7 +243,7 @@ void Connection::close_after_flush(const std::string& reason, std::chrono::milli
   if (closed_ || closing_after_flush_) return;
   closing_after_flush_ = true;
   pending_close_reason_ = reason;
-  flush_timer_ = std::make_unique<asio::steady_timer>(socket_.get_executor(), timeout);
+  flush_timer_ = std::make_unique<asio::steady_timer>(tcp().get_executor(), timeout);
   auto self = shared_from_this();
   flush_timer_->async_wait([this, self](const asio::error_code& ec) {
     if (!ec) finish(pending_close_reason_ + " (peer did not read the last bytes or close in time)");
@@ -197,11 +255,12 @@ void Connection::drain() {
   // Reads and discards what the peer still sends until it closes; bounded by the flush timer.
   auto self = shared_from_this();
   reading_ = true;
-  socket_.async_read_some(asio::buffer(header_buf_), [this, self](const asio::error_code& ec, std::size_t) {
+  auto on_read = [this, self](const asio::error_code& ec, std::size_t) {
     reading_ = false;
     if (closed_) return;
     continue_drain(ec);
-  });
+  };
+  with_stream([&](auto& stream) { stream.async_read_some(asio::buffer(header_buf_), std::move(on_read)); });
 }
 
 void Connection::continue_drain(const asio::error_code& ec) {
@@ -218,8 +277,8 @@ void Connection::finish(const std::string& reason) {
   if (closed_) return;
   closed_ = true;
   asio::error_code ec;
-  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
-  socket_.close(ec);
+  tcp().shutdown(asio::ip::tcp::socket::shutdown_both, ec);
+  tcp().close(ec);
   if (flush_timer_) flush_timer_->cancel();
   queue_.clear();
   queued_bytes_ = 0;

@@ -1,5 +1,6 @@
-// One framed rtc protocol connection over TCP (Asio): reads whole messages, queues writes, and
-// closes on the first malformed byte with a reason naming the peer. Shared by master and worker.
+// One framed rtc protocol connection over TCP or TLS over TCP (Asio, OpenSSL): reads whole
+// messages, queues writes, and closes on the first malformed byte with a reason naming the peer.
+// Shared by master and worker.
 #pragma once
 
 #include <array>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include <asio.hpp>
+#include <asio/ssl.hpp>
 
 #include "protocol/message.h"
 
@@ -29,6 +31,21 @@ struct HostPort {
 };
 [[nodiscard]] HostPort parse_host_port(const std::string& text, const std::string& what);
 
+/// A TLS stream over a TCP socket.
+using TlsStream = asio::ssl::stream<asio::ip::tcp::socket>;
+
+/// The master's TLS context: its certificate chain and private key (PEM files); TLS 1.2 or
+/// later. Throws rtc::Error naming the file that cannot be read or does not match.
+[[nodiscard]] std::shared_ptr<asio::ssl::context> tls_server_context(const std::string& cert_file,
+                                                                     const std::string& key_file);
+/// A worker's TLS context: trusts the certificates in `ca_file` (PEM: a CA, or the master's own
+/// self-signed certificate) and nothing else; TLS 1.2 or later. Throws rtc::Error naming the file.
+[[nodiscard]] std::shared_ptr<asio::ssl::context> tls_client_context(const std::string& ca_file);
+
+/// Whether `ec` means the peer ended the stream: EOF, or a TLS peer closing without close_notify
+/// (what Connection's own graceful close does: it shuts the TCP socket's sending side).
+[[nodiscard]] bool is_end_of_stream(const asio::error_code& ec);
+
 /// A framed message connection. Single-threaded: every member must be called on the thread
 /// running the io_context, and every handler runs there. Owned by shared_ptr (the pending
 /// operations keep it alive until it is closed).
@@ -40,6 +57,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   using CloseHandler = std::function<void(const std::string& reason)>;
 
   Connection(asio::ip::tcp::socket socket, std::string peer);
+  /// Over TLS: `stream` has finished its handshake.
+  Connection(std::shared_ptr<TlsStream> stream, std::string peer);
   ~Connection();
   Connection(const Connection&) = delete;
   Connection& operator=(const Connection&) = delete;
@@ -75,6 +94,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void set_drained_handler(std::function<void()> on_drained) { on_drained_ = std::move(on_drained); }
 
   [[nodiscard]] const std::string& peer() const { return peer_; }
+  [[nodiscard]] bool tls() const { return tls_ != nullptr; }
   [[nodiscard]] bool is_open() const { return !closed_; }
   [[nodiscard]] std::size_t queued_bytes() const { return queued_bytes_; }
   [[nodiscard]] std::uint64_t bytes_received() const { return bytes_received_; }
@@ -92,8 +112,20 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void drain();
   void continue_drain(const asio::error_code& ec);
   void finish(const std::string& reason);
+  /// The TCP socket under the stream (shutdown, close, options).
+  asio::ip::tcp::socket& tcp() { return tls_ ? tls_->next_layer() : socket_; }
+  /// Calls f(stream) with the TLS stream or the plain socket: every read and write goes through it.
+  template <typename F>
+  void with_stream(F&& f) {
+    if (tls_) {
+      f(*tls_);
+    } else {
+      f(socket_);
+    }
+  }
 
-  asio::ip::tcp::socket socket_;
+  asio::ip::tcp::socket socket_;     ///< the connection without TLS (unused with TLS)
+  std::shared_ptr<TlsStream> tls_;  ///< the connection with TLS
   std::string peer_;
   MessageHandler on_message_;
   CloseHandler on_close_;

@@ -17,6 +17,7 @@ import hashlib
 import hmac
 import json
 import os
+import random
 import re
 import shutil
 import signal
@@ -35,6 +36,7 @@ MAGIC = 0x31435452  # "RTC1"
 VERSION = 1
 HEADER = struct.Struct("<IHHII")  # magic, version, type, payload length, crc32 of the payload
 MSG_CHALLENGE, MSG_HELLO, MSG_AUTH, MSG_ERROR = 1, 2, 3, 14
+MSG_SCENE_OFFER, MSG_SCENE_REQUEST, MSG_SCENE_READY, MSG_TILE_ASSIGN, MSG_TILE_RESULT = 5, 6, 8, 10, 11
 ERROR_AUTH_FAILED = 3
 AUTH_CONTEXT = b"rtc-auth-v1"
 
@@ -926,6 +928,427 @@ def case_big_message_before_auth(c):
     expect_exit(master, 0, 15, "exit 0 on SIGTERM")
 
 
+def case_connection_limits(c):
+    """--max-unauthenticated-per-host 2 --max-connections-per-host 3: a third handshake from the
+    same address, or a fourth connection, is closed before the master sends anything, and logged
+    with the peer; the connections within the limits, and the frames, are unaffected."""
+    # ~3 s of frames: the master must still be up for the connections tried after the worker joined.
+    scene = [*SLOW, "--tile", "16", *WHOLE]
+    ref = c.reference("ref", scene, "0-23", "png")
+    out = c.mkdir("run")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out", os.path.join(out, "m_####.png"),
+                                                "--max-connections-per-host", "3",
+                                                "--max-unauthenticated-per-host", "2", "--auth-timeout", "60000"])
+    host, port = split_address(addr)
+
+    def refused(what, open_count):
+        s = socket.create_connection((host, port), timeout=10)
+        me = "%s:%d" % s.getsockname()[:2]
+        with s:
+            data, closed = read_until_closed(s, 10)
+        if not closed or data:
+            fail(f"{what}: the master {'sent ' + str(len(data)) + ' bytes' if data else 'kept it open'}, "
+                 "expected a close before anything is sent")
+        m = expect_log(master, rf"refused connection from {re.escape(me)}: .* has {open_count} open",
+                       f"{what}: the refusal, with the peer", watch=[master])
+        print(f"{what}: {m.string.strip()}")
+
+    # Two handshakes left hanging: the third is one too many.
+    s1 = socket.create_connection((host, port), timeout=10)
+    read_challenge(s1)
+    s2 = socket.create_connection((host, port), timeout=10)
+    read_challenge(s2)
+    refused("a third unauthenticated connection", 2)
+    # One handshake ends: a real worker gets in (two open: s2 and the worker), renders ...
+    s1.close()
+    worker = c.start_worker("worker", addr, 1)
+    expect_log(master, r"worker w\d+ .* joined", "the worker to join", watch=[master, worker])
+    # ... a third connection fits, a fourth does not.
+    s3 = socket.create_connection((host, port), timeout=10)
+    read_challenge(s3)
+    refused("a fourth connection", 3)
+    if not master.alive():
+        fail("the master finished before every connection was tried: make the job longer")
+    s2.close()
+    s3.close()
+    expect_exit(master, 0, 60, "finish every frame")
+    expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
+    c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
+
+
+def make_certificate(c, name, san="IP:127.0.0.1,DNS:localhost"):
+    """A self-signed P-256 certificate and key (openssl req), valid a day; returns (cert, key)."""
+    cert, key = c.path(f"{name}.pem"), c.path(f"{name}.key")
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes",
+                    "-keyout", key, "-out", cert, "-days", "1", "-subj", f"/CN={name}", "-addext",
+                    f"subjectAltName={san}"], check=True, capture_output=True)
+    return cert, key
+
+
+def case_tls(c):
+    """Master with --tls-cert/--tls-key, workers with --tls-ca: every frame bit-identical to
+    rtc-render, and no plaintext on the wire (a raw connection gets no rtc Challenge). A worker
+    that trusts another certificate exits 1 naming the verification failure; one without TLS is
+    dropped after the handshake timeout; a certificate for another host name is refused."""
+    cert, key = make_certificate(c, "master")
+    other_cert, _ = make_certificate(c, "other")
+    token = c.path("token")
+    with open(token, "w", encoding="utf-8") as f:
+        f.write("tls-and-token\n")
+    scene = [*SLOW, "--tile", "16", *WHOLE]
+    ref = c.reference("ref", scene, "0-23", "png")
+    out = c.mkdir("run")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out", os.path.join(out, "m_####.png"),
+                                                "--tls-cert", cert, "--tls-key", key, "--token-file", token,
+                                                "--auth-timeout", "1500"])
+    expect_log(master, r"listening on .*TLS\)", "the master to say it uses TLS", watch=[master])
+    host, port = split_address(addr)
+    # A raw TCP peer: the master waits for a TLS ClientHello and sends no rtc message in clear.
+    with socket.create_connection((host, port), timeout=10) as s:
+        data, closed = read_until_closed(s, 10)
+    if MAGIC.to_bytes(4, "little") in data:
+        fail(f"the TLS master sent an rtc message in clear to a raw TCP peer: {data[:32]!r}")
+    expect_log(master, r"TLS handshake with 127\.0\.0\.1:\d+ failed: no handshake within 1500 ms",
+               "the raw peer's handshake timeout", watch=[master])
+    # A worker that trusts another certificate: exit 1, the reason in its log.
+    wrong = c.start_worker("wrong-ca", addr, 1, ["--tls-ca", other_cert, "--token-file", token])
+    expect_exit(wrong, 1, 20, "exit 1 on an untrusted master certificate")
+    expect_log(wrong, r"certificate is not trusted: self.signed certificate", "the verification failure", timeout=1)
+    # The right certificate, but the worker expects another name.
+    misnamed = c.start_worker("wrong-name", addr, 1, ["--tls-ca", cert, "--token-file", token,
+                                                      "--tls-server-name", "render.example.org"])
+    expect_exit(misnamed, 1, 20, "exit 1 on a certificate for another name")
+    expect_log(misnamed, r'certificate is not trusted: it does not name "render\.example\.org"', "the name mismatch",
+               timeout=1)
+    # Two good workers.
+    workers = [c.start_worker(f"w{i}", addr, 1, ["--tls-ca", cert, "--token-file", token]) for i in (1, 2)]
+    expect_exit(master, 0, 90, "finish every frame over TLS")
+    for w in workers:
+        expect_exit(w, 0, 15, "exit 0 after the master's Goodbye")
+    c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
+
+
+def ppm_pixels_hash(path):
+    """SHA-256 of a binary PPM's raster (after the P6 header)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    fields, at = [], 0
+    while len(fields) < 4:  # magic, width, height, maxval
+        while data[at:at + 1].isspace():
+            at += 1
+        start = at
+        while not data[at:at + 1].isspace():
+            at += 1
+        fields.append(data[start:at])
+    if fields[0] != b"P6":
+        fail(f"{path}: not a binary PPM")
+    return hashlib.sha256(data[at + 1:]).hexdigest()
+
+
+def proc_status(pid):
+    """(resident set in MiB, open file descriptors) of a live process, or None."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="utf-8") as f:
+            rss_kb = int(re.search(r"^VmRSS:\s+(\d+) kB", f.read(), re.M).group(1))
+        return rss_kb / 1024.0, len(os.listdir(f"/proc/{pid}/fd"))
+    except (OSError, AttributeError):
+        return None
+
+
+def case_load_64(c):
+    """64 worker processes on loopback against one master: all join, every frame complete and
+    bit-identical to rtc-render; prints the master's CPU time per frame and per tile."""
+    n_workers = 64
+    scene = [*MEDIUM, "--tile", "8", *WHOLE]  # 300 tiles a frame: work for every worker
+    frames = "0-7"
+    ref = c.reference("ref", scene, frames, "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", frames, "--out", os.path.join(out, "m_####.png"),
+                                                "--stats-json", stats, "--min-workers", str(n_workers)])
+    workers = [c.start_worker(f"l{i:02d}", addr, 1) for i in range(n_workers)]
+    peak = {"master": 0.0, "fds": 0}
+
+    def all_done():
+        st = proc_status(master.pid)
+        if st:
+            peak["master"] = max(peak["master"], st[0])
+            peak["fds"] = max(peak["fds"], st[1])
+        return not master.alive()
+
+    wait_for(all_done, 240, "the master to render every frame with 64 workers")
+    expect_exit(master, 0, 5, "finish every frame")
+    for w in workers:
+        expect_exit(w, 0, 30, "exit 0 after the master's Goodbye")
+    joined = len(re.findall(r"worker w\d+ .* joined", master.log()))
+    if joined != n_workers:
+        fail(f"{joined} workers joined, expected {n_workers}")
+    records, summary = read_stats(stats)
+    if sorted(r["frame"] for r in records) != list(range(0, 8)) or summary is None:
+        fail(f"stats: frames {[r['frame'] for r in records]}, summary {summary}")
+    c.expect_frames_equal(out, "m", ref, range(0, 8), "png")
+    busy = len([w for w, share in summary["worker_share"].items() if share > 0])
+    print(f"load: {n_workers} workers joined, {busy} traced tiles; {summary['frames']} frames, {summary['tiles']} tiles; "
+          f"master network thread {summary['master_io_cpu_s'] * 1e3:.0f} ms CPU = "
+          f"{summary['master_io_cpu_s'] * 1e3 / summary['frames']:.1f} ms/frame, "
+          f"{summary['master_io_cpu_s'] * 1e6 / summary['tiles']:.0f} us/tile; whole process "
+          f"{summary['master_process_cpu_s'] * 1e3:.0f} ms (PNG writing included); peak RSS {peak['master']:.1f} MiB, "
+          f"peak {peak['fds']} fds")
+
+
+def case_soak(c):
+    """Thousands of frames (--loop) while workers join, leave (SIGTERM) and are SIGKILLed at random
+    (seeded): no frame lost or wrong (each PPM's raster hash against rtc-render's frame), the
+    master's and a long-lived worker's resident memory flat after warm-up, no descriptor leaked."""
+    seconds = float(os.environ.get("RTC_SOAK_SECONDS", "45"))
+    seed = int(os.environ.get("RTC_SOAK_SEED", "8"))
+    rng = random.Random(seed)
+    scene = ["--width", "64", "--height", "48", "--tile", "16"]  # 12 tiles a frame
+    ref = c.reference("ref", scene, "0-23", "ppm")
+    ref_hash = {n: ppm_pixels_hash(os.path.join(ref, f"r_{n:04d}.ppm")) for n in range(24)}
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--loop", str(seconds), "--out", os.path.join(out, "m_####.ppm"),
+                                                "--stats-json", stats, "--heartbeat-timeout", "1500"])
+    anchor = c.start_worker("anchor", addr, 1)  # never stopped: its memory is sampled too
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master, anchor])
+    # Descriptors with one worker connected: the least of a few looks (the frame writer holds a
+    # file open for a moment now and then).
+    base_fds = []
+    for _ in range(5):
+        time.sleep(0.1)
+        st = proc_status(master.pid)
+        if st:
+            base_fds.append(st[1])
+    base_fds = min(base_fds)
+    start = time.monotonic()
+    extras, samples = [], []
+    joins = leaves = kills = 0
+    next_action, next_kill, next_sample = start, start + 3.0, start
+    while master.alive() and time.monotonic() - start < seconds + 60:
+        now = time.monotonic()
+        extras = [w for w in extras if w.alive()]
+        if now >= next_sample:
+            m, a = proc_status(master.pid), proc_status(anchor.pid)
+            if m and a:
+                samples.append((now - start, m[0], m[1], a[0], len(extras)))
+            next_sample = now + 0.5
+        if now - start < seconds - 3:  # the last seconds: no churn, so the end count is clean
+            if now >= next_kill and extras:
+                rng.choice(extras).send(signal.SIGKILL)
+                kills += 1
+                next_kill = now + rng.uniform(2.0, 4.0)
+            elif now >= next_action:
+                if len(extras) < 3 and (not extras or rng.random() < 0.55):
+                    joins += 1
+                    extras.append(c.start_worker(f"x{joins:03d}", addr, 1))
+                elif extras:
+                    rng.choice(extras).send(signal.SIGTERM)
+                    leaves += 1
+                next_action = now + rng.uniform(0.3, 0.9)
+        elif extras:
+            for w in extras:
+                w.send(signal.SIGTERM)
+        time.sleep(0.05)
+    expect_exit(master, 0, 90, "finish the --loop run")
+    expect_exit(anchor, 0, 15, "exit 0 after the master's Goodbye")
+
+    records, summary = read_stats(stats)
+    seqs = sorted(r["sequence"] for r in records)
+    if not records or seqs != list(range(len(records))):
+        missing = sorted(set(range(max(seqs) + 1)) - set(seqs)) if seqs else []
+        fail(f"frames lost: {len(records)} frames, sequences missing {missing[:20]}")
+    wrong = []
+    for r in records:
+        got = ppm_pixels_hash(r["file"])
+        if got != ref_hash[r["frame"]]:
+            wrong.append((r["sequence"], r["frame"]))
+    if wrong:
+        fail(f"{len(wrong)} of {len(records)} frames differ from rtc-render's: (sequence, frame) {wrong[:10]}")
+
+    # Memory after warm-up (the first quarter): the last third's median against the second
+    # quarter's. A leak of a few hundred bytes a frame over thousands of frames would show.
+    post = [s for s in samples if s[0] >= seconds / 4]
+    if len(post) < 12:
+        fail(f"only {len(post)} samples after warm-up")
+    def med(xs):
+        xs = sorted(xs)
+        return xs[len(xs) // 2]
+    early = [s for s in post if s[0] < seconds / 2]
+    late = post[-len(post) // 3:]
+    m_growth = med(x[1] for x in late) - med(x[1] for x in early)
+    a_growth = med(x[3] for x in late) - med(x[3] for x in early)
+    deciles = [post[i * (len(post) - 1) // 9] for i in range(10)]
+    curve = ", ".join(f"{t:.0f}s {m:.1f}/{a:.1f}" for t, m, _, a, _ in deciles)
+    # The same least count over the last 2 s sampled, when only the anchor was left.
+    quiet = [x[2] for x in samples if x[4] == 0 and x[0] >= samples[-1][0] - 2.0]
+    fds_end = min(quiet) if quiet else None
+    print(f"soak: {len(records)} frames in {summary['total_s']:.1f} s ({summary['mean_fps']:.0f} fps), all equal to "
+          f"rtc-render's; {joins} workers joined, {leaves} left (SIGTERM), {kills} SIGKILLed; "
+          f"{summary['duplicate_tiles']} duplicate tiles dropped")
+    print(f"soak: RSS MiB master/anchor worker over time: {curve}; growth after warm-up: master {m_growth:+.2f} MiB, "
+          f"worker {a_growth:+.2f} MiB; master fds with one worker: {base_fds} at the start, {fds_end} at the end")
+    # Thresholds: 4 MiB is above the allocator's noise seen in steady runs (malloc arenas settle within
+    # a few MiB) and well below what a per-frame leak over this many frames would add.
+    if m_growth > 4.0 or a_growth > 4.0:
+        fail(f"resident memory grew after warm-up: master {m_growth:+.2f} MiB, worker {a_growth:+.2f} MiB")
+    if fds_end is None:
+        fail("no sample in the last 2 s with only the anchor worker left")
+    if fds_end > base_fds:
+        fail(f"the master holds {fds_end} descriptors with one worker left, {base_fds} at the start")
+
+
+class FakeWorker:
+    """A worker written here, on a raw socket, that follows the protocol as far as asked
+    (Challenge, Hello, Auth, scene) and then misbehaves on purpose."""
+
+    def __init__(self, address, name):
+        host, port = split_address(address)
+        self.sock = socket.create_connection((host, port), timeout=10)
+        self.me = "%s:%d" % self.sock.getsockname()[:2]
+        self.name = name
+        self.buf = b""
+
+    def read_until(self, wanted, timeout=10):
+        """Messages until one of type `wanted` has come (that one included)."""
+        got = []
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            while len(self.buf) >= HEADER.size:
+                _, _, msg_type, length, _ = HEADER.unpack_from(self.buf, 0)
+                if len(self.buf) < HEADER.size + length:
+                    break
+                got.append((msg_type, self.buf[HEADER.size:HEADER.size + length]))
+                self.buf = self.buf[HEADER.size + length:]
+                if msg_type == wanted:
+                    return got
+            self.sock.settimeout(max(0.05, deadline - time.monotonic()))
+            try:
+                chunk = self.sock.recv(1 << 16)
+            except socket.timeout:
+                continue
+            if not chunk:
+                fail(f"{self.name}: the master closed before message type {wanted} (got {[t for t, _ in got]})")
+            self.buf += chunk
+        fail(f"{self.name}: no message of type {wanted} within {timeout} s (got {[t for t, _ in got]})")
+
+    def join(self, have_scene=True):
+        """Authenticates (no token) and takes the scene; returns the scene offer's hash."""
+        _, _, build = parse_challenge(self.read_until(MSG_CHALLENGE)[-1][1])
+        self.sock.sendall(message(MSG_HELLO, hello_payload(self.name, build)) + message(MSG_AUTH, bytes(32)))
+        offer = self.read_until(MSG_SCENE_OFFER)[-1][1]
+        scene_hash = offer[:32]
+        self.sock.sendall(message(MSG_SCENE_REQUEST, scene_hash + bytes([1 if have_scene else 0])))
+        if have_scene:
+            self.sock.sendall(message(MSG_SCENE_READY, scene_hash + struct.pack("<I", 1)))
+        return scene_hash
+
+    def tiles(self, timeout=20):
+        """Waits for the first TileAssign; returns every (sequence, tile) assigned so far."""
+        got = self.read_until(MSG_TILE_ASSIGN, timeout)
+        return [struct.unpack_from("<IiI", p) for t, p in got if t == MSG_TILE_ASSIGN]
+
+    def close(self):
+        self.sock.close()
+
+
+def case_faults(c):
+    """Injected faults against a master that a real worker serves meanwhile: a worker that sends
+    garbage in the middle of its tiles, one that sends a result for a tile it was not given, one
+    that stops reading while the scene streams to it. Each is closed with a log line naming it;
+    its tiles go back to the queue; the master's memory stays bounded; every frame comes out
+    bit-identical to rtc-render's."""
+    # ~6 s of frames on the one real worker: the faults, the last waiting out a heartbeat timeout,
+    # must all land before the run ends.
+    scene = [*LARGE, "--spp", "4", "--tile", "16", *WHOLE]
+    ref = c.reference("ref", scene, "0-23", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out", os.path.join(out, "m_####.png"),
+                                                "--stats-json", stats, "--link-mbps", "1000",
+                                                "--heartbeat-timeout", "1500"])
+    good = c.start_worker("good", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master, good])
+
+    # (a) garbage in the middle of the stream, holding tiles.
+    a = FakeWorker(addr, "garbage")
+    a.join()
+    held = a.tiles()
+    a.sock.sendall(b"\x00GARBAGE-IN-THE-MIDDLE" * 4)
+    data, closed = read_until_closed(a.sock, 10)
+    a.close()
+    if not closed:
+        fail("(a) the master kept the connection of a worker sending garbage")
+    m = expect_log(master, rf"(?=.*{re.escape(a.me)}\b)(?=.*left: bad message .*bad magic)(?=.*tiles back in the queue)",
+                   "(a) the garbage worker closed, its tiles requeued", watch=[master])
+    print(f"(a) held {len(held)} tiles; {m.string.strip()}")
+
+    # (b) a result for a tile it was not given.
+    b = FakeWorker(addr, "foreign")
+    b.join()
+    held = b.tiles()
+    seq, frame, tile = held[0]
+    foreign = next(t for t in range(100000) if (seq, t) not in {(s_, t_) for s_, _, t_ in held})
+    result = struct.pack("<IiIIIIIBBBIIQQQI", seq, frame, foreign, 0, 0, 16, 16, 1, 1, 0, 1024, 1, 0, 0, 0, 0)
+    b.sock.sendall(message(MSG_TILE_RESULT, result))
+    data, closed = read_until_closed(b.sock, 10)
+    b.close()
+    if not closed:
+        fail("(b) the master kept the connection of a worker sending a foreign tile")
+    errors = [p for t, p in parse_messages(b.buf + data) if t == MSG_ERROR]
+    m = expect_log(master, rf"(?=.*{re.escape(b.me)}\b)(?=.*result for tile {foreign} of frame sequence {seq} that it was not given)",
+                   "(b) the foreign result refused", watch=[master])
+    print(f"(b) {m.string.strip()} (Error sent: {bool(errors)})")
+
+    # (c) stops reading while the 1.2 MB scene streams to it, and answers no heartbeat.
+    rss_before = proc_status(master.pid)[0]
+    cw = FakeWorker(addr, "deaf")
+    cw.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    cw.join(have_scene=False)
+    peak = rss_before
+    deadline = time.monotonic() + 15
+    dropped = None
+    while time.monotonic() < deadline and dropped is None:
+        st = proc_status(master.pid)
+        if st:
+            peak = max(peak, st[0])
+        dropped = re.search(rf".*{re.escape(cw.me)}\b.*left: missed heartbeats.*", master.log())
+        time.sleep(0.05)
+    cw.close()
+    if dropped is None:
+        fail("(c) the master did not drop a worker that stopped reading")
+    print(f"(c) {dropped.group(0).strip()}; master RSS {rss_before:.1f} MiB before, peak {peak:.1f} MiB meanwhile")
+    if peak - rss_before > 32:
+        fail(f"(c) the master's memory grew by {peak - rss_before:.1f} MiB for a peer that does not read")
+
+    if not master.alive():
+        fail("the master finished before every fault was tried: make the job longer")
+    expect_exit(master, 0, 90, "finish every frame despite the faults")
+    expect_exit(good, 0, 15, "exit 0 after the master's Goodbye")
+    c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
+
+
+def case_master_dies(c):
+    """The master is SIGKILLed mid-run: the worker notices, retries for --retry-seconds, then exits
+    1 saying it gave up."""
+    scene = [*SLOW, "--tile", "16", *WHOLE]
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--stats-json", stats])
+    w = c.start_worker("worker", addr, 1, ["--retry-seconds", "2"])
+    wait_for(lambda: len(read_stats(stats)[0]) >= 2, 60, "two frames", [master, w])
+    master.send(signal.SIGKILL)
+    killed = time.monotonic()
+    rc = w.wait(30, "give up after the master died")
+    took = time.monotonic() - killed
+    if rc != 1:
+        fail(f"the worker: {describe_rc(rc)}, expected exit status 1")
+    expect_log(w, r"lost the master", "the lost connection", timeout=1)
+    m = expect_log(w, r"unreachable for \d+ s .*giving up \(--retry-seconds 2\)", "the reason it gave up", timeout=1)
+    print(f"worker exited 1 {took:.1f} s after the master's SIGKILL: {m.string.strip()}")
+    if took > 15:
+        fail(f"the worker took {took:.1f} s to give up with --retry-seconds 2")
+
+
 def case_master_cli_errors(c):
     """Bad rtc-master options fail before anything listens: exit 1, a message naming the option."""
     cases = [
@@ -1121,6 +1544,12 @@ CASES = {
     "worker_gives_up": case_worker_gives_up,
     "bad_master": case_bad_master,
     "big_message_before_auth": case_big_message_before_auth,
+    "connection_limits": case_connection_limits,
+    "tls": case_tls,
+    "load_64": case_load_64,
+    "soak": case_soak,
+    "faults": case_faults,
+    "master_dies": case_master_dies,
     "master_cli_errors": case_master_cli_errors,
     "launch_local": case_launch_local,
 }
