@@ -11,8 +11,9 @@
 // is asked not to decode images (rtc uses no textures) and reads files only through
 // FileBytes (regular files and pipes, never devices).
 //
-// Measured (dev container, Release, page cache, best of 9): 2CylinderEngine.glb (121,496
-// triangles after instancing, 110,336 after dropping degenerates).
+// Measured (dev container, Release, page cache, best of 9, scene_load_timing): 2CylinderEngine.glb
+// (121,496 triangles after instancing, 110,336 after dropping degenerates) loads in 9.0-9.6 ms
+// whole, against 8.1 ms for Assimp's ReadFile alone (the Assimp-based loader took 9.6 ms whole).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
