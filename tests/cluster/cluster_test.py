@@ -1062,9 +1062,9 @@ def proc_status(pid):
 
 
 def case_load_64(c):
-    """64 worker processes on loopback against one master: all join, every frame complete and
-    bit-identical to rtc-render; prints the master's CPU time per frame and per tile."""
-    n_workers = 64
+    """64 worker processes (RTC_LOAD_WORKERS) on loopback against one master: all join, every frame
+    complete and bit-identical to rtc-render; prints the master's CPU time per frame and per tile."""
+    n_workers = int(os.environ.get("RTC_LOAD_WORKERS", "64"))
     scene = [*MEDIUM, "--tile", "8", *WHOLE]  # 300 tiles a frame: work for every worker
     frames = "0-7"
     ref = c.reference("ref", scene, frames, "png")
@@ -1082,7 +1082,7 @@ def case_load_64(c):
             peak["fds"] = max(peak["fds"], st[1])
         return not master.alive()
 
-    wait_for(all_done, 240, "the master to render every frame with 64 workers")
+    wait_for(all_done, 240, f"the master to render every frame with {n_workers} workers")
     expect_exit(master, 0, 5, "finish every frame")
     for w in workers:
         expect_exit(w, 0, 30, "exit 0 after the master's Goodbye")
