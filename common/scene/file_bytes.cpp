@@ -16,6 +16,14 @@ namespace rtc {
 
 FileBytes::FileBytes(const std::filesystem::path& path) {
   const std::string name = path.string();
+  // open() would stop at the NUL and read another file than the one named (a glTF buffer URI,
+  // an MTL library: names that come from files).
+  // The message shows it as \0: a raw NUL would end what() there, reason and all.
+  if (const std::size_t nul = name.find('\0'); nul != std::string::npos) {
+    std::string shown = name;
+    for (std::size_t at = nul; at != std::string::npos; at = shown.find('\0', at + 2)) shown.replace(at, 1, "\\0");
+    throw_at(shown, 0, "file name contains a NUL byte");
+  }
   const int fd = ::open(name.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     throw_at(name, 0, std::string("cannot open the file: ") + std::strerror(errno));

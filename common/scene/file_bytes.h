@@ -13,8 +13,8 @@ namespace rtc {
 /// Movable, not copyable; not thread-safe.
 class FileBytes {
  public:
-  /// Throws rtc::Error naming the file when it is missing, a directory, a device or socket (only
-  /// regular files and pipes are read), or unreadable.
+  /// Throws rtc::Error naming the file when its name holds a NUL byte, or it is missing, a
+  /// directory, a device or socket (only regular files and pipes are read), or unreadable.
   explicit FileBytes(const std::filesystem::path& path);
   ~FileBytes();
   FileBytes(const FileBytes&) = delete;

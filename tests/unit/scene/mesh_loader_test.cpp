@@ -199,6 +199,14 @@ TEST(MeshFile, DevicesAreNotRead) {
   EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
 }
 
+TEST(MeshFile, NamesWithANulByteAreNotOpened) {
+  // open() would stop at the NUL and read the shorter name, a file that exists here.
+  TempDir dir;
+  const auto real = dir.write("real.bin", "bytes");
+  const std::string message = error_of([&] { (void)FileBytes(real.string() + std::string("\0.obj", 5)); });
+  EXPECT_NE(message.find("real.bin\\0.obj: file name contains a NUL byte"), std::string::npos) << message;
+}
+
 TEST(ObjLoader, MaterialLibraryErrorsNameTheObjLine) {
   TempDir dir;
   std::filesystem::create_directories(dir.path() / "lib.mtl");  // a folder named like a library
