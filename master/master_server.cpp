@@ -275,15 +275,9 @@ class Master {
     // TLS: the handshake first, within the time a connection has to authenticate; the rtc
     // protocol (Challenge first) starts once it is done.
     auto stream = std::make_shared<net::TlsStream>(std::move(socket), *tls_);
-    auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::milliseconds(options_.auth_timeout_ms));
-    timer->async_wait([stream](const asio::error_code& ec) {
-      if (ec) return;
-      asio::error_code ignored;
-      stream->next_layer().close(ignored);  // the handshake fails with operation_aborted
-    });
     ++tls_handshakes_[host];
-    stream->async_handshake(asio::ssl::stream_base::server, [this, stream, timer, peer, host](const asio::error_code& ec) {
-      timer->cancel();
+    net::async_tls_handshake(stream, asio::ssl::stream_base::server, std::chrono::milliseconds(options_.auth_timeout_ms),
+                             [this, stream, peer, host](const asio::error_code& ec) {
       if (--tls_handshakes_[host] == 0) tls_handshakes_.erase(host);
       if (done_) return;
       if (ec) {

@@ -401,14 +401,8 @@ class WorkerClient {
     asio::error_code ignored;
     asio::ip::make_address(options_.tls_server_name, ignored);
     if (ignored) SSL_set_tlsext_host_name(stream->native_handle(), options_.tls_server_name.c_str());
-    auto timeout = std::make_shared<asio::steady_timer>(io_, std::chrono::seconds(10));
-    timeout->async_wait([stream](const asio::error_code& ec) {
-      if (ec) return;
-      asio::error_code e;
-      stream->next_layer().close(e);
-    });
-    stream->async_handshake(asio::ssl::stream_base::client, [this, stream, timeout, peer, name_failed](const asio::error_code& ec) {
-      timeout->cancel();
+    net::async_tls_handshake(stream, asio::ssl::stream_base::client, std::chrono::seconds(10),
+                             [this, stream, peer, name_failed](const asio::error_code& ec) {
       if (finished_) return;
       if (!ec) return on_connected(std::make_shared<net::Connection>(stream, peer));
       const long verify = SSL_get_verify_result(stream->native_handle());

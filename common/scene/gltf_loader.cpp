@@ -209,11 +209,16 @@ class GltfReader {
     const unsigned char* data = nullptr;
     std::size_t count = 0, stride = 0;
   };
-  View accessor_view(int index, const std::string& what, std::size_t element) const {
+  /// Accessor `index`; fails naming `what` when the file has no such accessor.
+  const tinygltf::Accessor& accessor(int index, const std::string& what) const {
     if (index < 0 || static_cast<std::size_t>(index) >= model_.accessors.size()) {
       fail(what + ": accessor " + std::to_string(index) + " is missing");
     }
-    const tinygltf::Accessor& a = model_.accessors[static_cast<std::size_t>(index)];
+    return model_.accessors[static_cast<std::size_t>(index)];
+  }
+
+  View accessor_view(int index, const std::string& what, std::size_t element) const {
+    const tinygltf::Accessor& a = accessor(index, what);
     const std::string name = what + " (accessor " + std::to_string(index) + ")";
     if (a.sparse.isSparse) fail(name + ": sparse accessors are not supported");
     if (a.bufferView < 0 || static_cast<std::size_t>(a.bufferView) >= model_.bufferViews.size()) {
@@ -244,11 +249,9 @@ class GltfReader {
     return out;
   }
 
-  const tinygltf::Accessor& accessor(int index) const { return model_.accessors[static_cast<std::size_t>(index)]; }
-
   View vec3_floats(int index, const std::string& what) const {
     const View v = accessor_view(index, what, 12);
-    const tinygltf::Accessor& a = accessor(index);
+    const tinygltf::Accessor& a = accessor(index, what);
     if (a.componentType != kComponentFloat || a.type != TINYGLTF_TYPE_VEC3) {
       fail(what + " (accessor " + std::to_string(index) + "): must be float VEC3 (componentType " +
            std::to_string(a.componentType) + ", type " + std::to_string(a.type) + ")");
@@ -268,10 +271,7 @@ class GltfReader {
       for (std::size_t k = 0; k < vertices; ++k) out[k] = static_cast<std::uint32_t>(k);
       return out;
     }
-    if (static_cast<std::size_t>(index) >= model_.accessors.size()) {
-      fail(what + ": accessor " + std::to_string(index) + " is missing");
-    }
-    const tinygltf::Accessor& a = accessor(index);
+    const tinygltf::Accessor& a = accessor(index, what);
     const std::size_t size = a.componentType == kComponentUnsignedByte    ? 1
                              : a.componentType == kComponentUnsignedShort ? 2
                              : a.componentType == kComponentUnsignedInt   ? 4

@@ -78,6 +78,20 @@ std::shared_ptr<asio::ssl::context> tls_client_context(const std::string& ca_fil
   return context;
 }
 
+void async_tls_handshake(std::shared_ptr<TlsStream> stream, asio::ssl::stream_base::handshake_type role,
+                         std::chrono::milliseconds timeout, std::function<void(const asio::error_code&)> done) {
+  auto timer = std::make_shared<asio::steady_timer>(stream->get_executor(), timeout);
+  timer->async_wait([stream](const asio::error_code& ec) {
+    if (ec) return;
+    asio::error_code ignored;
+    stream->next_layer().close(ignored);  // the handshake then fails with operation_aborted
+  });
+  stream->async_handshake(role, [stream, timer, done = std::move(done)](const asio::error_code& ec) {
+    timer->cancel();
+    done(ec);
+  });
+}
+
 bool is_end_of_stream(const asio::error_code& ec) {
   return ec == asio::error::eof || ec == asio::ssl::error::stream_truncated;
 }

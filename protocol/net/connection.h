@@ -42,6 +42,12 @@ using TlsStream = asio::ssl::stream<asio::ip::tcp::socket>;
 /// self-signed certificate) and nothing else; TLS 1.2 or later. Throws rtc::Error naming the file.
 [[nodiscard]] std::shared_ptr<asio::ssl::context> tls_client_context(const std::string& ca_file);
 
+/// Runs `stream`'s TLS handshake as `role`; when it has not finished within `timeout` the TCP
+/// socket is closed, and `done` gets asio::error::operation_aborted. `done` runs once, on the
+/// stream's executor.
+void async_tls_handshake(std::shared_ptr<TlsStream> stream, asio::ssl::stream_base::handshake_type role,
+                         std::chrono::milliseconds timeout, std::function<void(const asio::error_code&)> done);
+
 /// Whether `ec` means the peer ended the stream: EOF, or a TLS peer closing without close_notify
 /// (what Connection's own graceful close does: it shuts the TCP socket's sending side).
 [[nodiscard]] bool is_end_of_stream(const asio::error_code& ec);

@@ -69,8 +69,9 @@ def wire_str(data):
     return struct.pack("<I", len(data)) + data
 
 
-def parse_messages(data):
-    """Splits received bytes into (type, payload) messages, checking each header and CRC."""
+def split_messages(data):
+    """Splits received bytes into whole (type, payload) messages, checking each header and CRC;
+    returns (messages, the bytes of an unfinished message at the end)."""
     out = []
     pos = 0
     while len(data) - pos >= HEADER.size:
@@ -84,7 +85,12 @@ def parse_messages(data):
             fail(f"the master sent type {msg_type} with a CRC mismatch")
         out.append((msg_type, payload))
         pos += HEADER.size + length
-    return out
+    return out, data[pos:]
+
+
+def parse_messages(data):
+    """The whole (type, payload) messages in received bytes (split_messages)."""
+    return split_messages(data)[0]
 
 
 def parse_challenge(payload):
@@ -259,6 +265,13 @@ class Case:
 
     def path(self, *parts):
         return os.path.join(self.tmp, *parts)
+
+    def token_file(self, name, token):
+        """A token file (what --token-file reads) in the case's folder; returns its path."""
+        path = self.path(name)
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(token + "\n")
+        return path
 
     def mkdir(self, name):
         d = self.path(name)
@@ -611,12 +624,8 @@ def read_challenge(sock, timeout=10):
 
 
 def case_bad_peers(c):
-    token = c.path("token")
-    with open(token, "w", encoding="utf-8") as f:
-        f.write("correct horse battery staple\n")
-    wrong_token = c.path("wrong-token")
-    with open(wrong_token, "w", encoding="utf-8") as f:
-        f.write("not the token\n")
+    token = c.token_file("token", "correct horse battery staple")
+    wrong_token = c.token_file("wrong-token", "not the token")
     # 24 frames, ~3 s with one worker: the master must outlive every bad peer (a master that
     # finishes just after rejecting the intruder may close before the intruder reads why).
     scene = [*SLOW, "--tile", "16", *WHOLE]
@@ -822,9 +831,7 @@ def case_non_loopback_needs_token(c):
         fail("rtc-master wrote its ready file although it refused to start")
     print(f"without a token: {p.log().strip().splitlines()[-1]}")
 
-    token = c.path("token")
-    with open(token, "w", encoding="utf-8") as f:
-        f.write("s3cret\n")
+    token = c.token_file("token", "s3cret")
     master, addr, _ = c.start_master("master-token", [*SMALL, "--token-file", token], listen="0.0.0.0:0")
     print(f"with a token: listening on {addr}")
     master.send(signal.SIGTERM)
@@ -913,9 +920,7 @@ def case_bad_master(c):
 def case_big_message_before_auth(c):
     """A peer that has not authenticated announces a 60 MiB TileResult: the master refuses it
     from the header alone (no allocation), says why, closes, logs the peer, and stays up."""
-    token = c.path("token")
-    with open(token, "w", encoding="utf-8") as f:
-        f.write("big-message-secret\n")
+    token = c.token_file("token", "big-message-secret")
     master, addr, _ = c.start_master("master", [*SMALL, "--frames", "0-0", "--token-file", token])
     host, port = split_address(addr)
     with socket.create_connection((host, port), timeout=10) as sock:
@@ -998,9 +1003,7 @@ def case_tls(c):
     dropped after the handshake timeout; a certificate for another host name is refused."""
     cert, key = make_certificate(c, "master")
     other_cert, _ = make_certificate(c, "other")
-    token = c.path("token")
-    with open(token, "w", encoding="utf-8") as f:
-        f.write("tls-and-token\n")
+    token = c.token_file("token", "tls-and-token")
     scene = [*SLOW, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")
@@ -1215,20 +1218,19 @@ class FakeWorker:
         self.sock = socket.create_connection((host, port), timeout=10)
         self.me = "%s:%d" % self.sock.getsockname()[:2]
         self.name = name
-        self.buf = b""
+        self.buf = b""      # received bytes not yet a whole message
+        self.pending = []   # whole messages not yet read
 
     def read_until(self, wanted, timeout=10):
         """Messages until one of type `wanted` has come (that one included)."""
         got = []
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            while len(self.buf) >= HEADER.size:
-                _, _, msg_type, length, _ = HEADER.unpack_from(self.buf, 0)
-                if len(self.buf) < HEADER.size + length:
-                    break
-                got.append((msg_type, self.buf[HEADER.size:HEADER.size + length]))
-                self.buf = self.buf[HEADER.size + length:]
-                if msg_type == wanted:
+            messages, self.buf = split_messages(self.buf)
+            self.pending += messages
+            while self.pending:  # what follows the wanted message stays for the next read
+                got.append(self.pending.pop(0))
+                if got[-1][0] == wanted:
                     return got
             self.sock.settimeout(max(0.05, deadline - time.monotonic()))
             try:
@@ -1295,15 +1297,17 @@ def case_faults(c):
     b = FakeWorker(addr, "foreign")
     b.join()
     held = b.tiles()
-    seq, frame, tile = held[0]
-    foreign = next(t for t in range(100000) if (seq, t) not in {(s_, t_) for s_, _, t_ in held})
+    # A frame sequence far ahead of any open frame: none of its tiles can have been handed out,
+    # while a tile of an open frame might still be on its way to this worker.
+    held_seq, frame, foreign = held[0]
+    seq = held_seq + 1000
     result = struct.pack("<IiIIIIIBBBIIQQQI", seq, frame, foreign, 0, 0, 16, 16, 1, 1, 0, 1024, 1, 0, 0, 0, 0)
     b.sock.sendall(message(MSG_TILE_RESULT, result))
     data, closed = read_until_closed(b.sock, 10)
     b.close()
     if not closed:
         fail("(b) the master kept the connection of a worker sending a foreign tile")
-    errors = [p for t, p in parse_messages(b.buf + data) if t == MSG_ERROR]
+    errors = [p for t, p in b.pending + parse_messages(b.buf + data) if t == MSG_ERROR]
     m = expect_log(master, rf"(?=.*{re.escape(b.me)}\b)(?=.*result for tile {foreign} of frame sequence {seq} that it was not given)",
                    "(b) the foreign result refused", watch=[master])
     print(f"(b) {m.string.strip()} (Error sent: {bool(errors)})")
