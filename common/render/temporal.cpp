@@ -24,6 +24,9 @@ constexpr double kPiecesPerCell = 1;
 /// to be marked as one (MarkRecorder::add_tube, add_sweep).
 constexpr double kMergeCells = 0.25;
 
+/// Widest (in cells, per axis) a group of shadow rays' surface points may be to be swept as one.
+constexpr double kClusterCells = 0.5;
+
 struct DBox {
   glm::dvec3 lo{kInf};
   glm::dvec3 hi{-kInf};
@@ -427,7 +430,14 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   // packet): every point is (1 - s) A_i + s B_i, inside the box swept from box(A) to box(B).
   // In float (box(A) exact; each B_i within 2 ulps of max(|A_i|, |B_i|)), then widened in
   // double by 1e-6 of the largest magnitude, far past that rounding.
-  glm::vec3 a_lo(kInfF), a_hi(-kInfF), b_lo(kInfF), b_hi(-kInfF);
+  // Lanes whose surface points lie far apart (a packet across a depth edge) are swept apart:
+  // one sweep over all of them would be as wide as the gap all the way to the light.
+  struct Cluster {
+    glm::vec3 a_lo, a_hi, b_lo, b_hi;
+  };
+  Cluster clusters[32];
+  int count = 0;
+  const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
   for (int i = 0; i < n; ++i) {
     const glm::vec3& o = org[i];
     const glm::vec3& d = dir[i];
@@ -438,15 +448,32 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
       mark_sweep(glm::dvec3(o), glm::dvec3(o), bd - 1e-6 * glm::length(bd), bd + 1e-6 * glm::length(bd));
       continue;
     }
-    a_lo = glm::min(a_lo, o);
-    a_hi = glm::max(a_hi, o);
-    b_lo = glm::min(b_lo, b);
-    b_hi = glm::max(b_hi, b);
+    int c = 0;
+    for (; c < count; ++c) {
+      Cluster& k = clusters[c];
+      const glm::vec3 a_lo = glm::min(k.a_lo, o), a_hi = glm::max(k.a_hi, o);
+      const glm::vec3 b_lo = glm::min(k.b_lo, b), b_hi = glm::max(k.b_hi, b);
+      if (glm::all(glm::lessThanEqual(a_hi - a_lo, limit)) && glm::all(glm::lessThanEqual(b_hi - b_lo, limit))) {
+        k = Cluster{a_lo, a_hi, b_lo, b_hi};
+        break;
+      }
+    }
+    if (c == count) {
+      if (count == static_cast<int>(std::size(clusters))) {
+        Cluster& k = clusters[0];  // never with packets of at most 32 lanes
+        k = Cluster{glm::min(k.a_lo, o), glm::max(k.a_hi, o), glm::min(k.b_lo, b), glm::max(k.b_hi, b)};
+      } else {
+        clusters[count++] = Cluster{o, o, b, b};
+      }
+    }
   }
-  if (!(a_lo.x <= a_hi.x)) return;
-  const glm::vec3 mag = glm::max(glm::max(glm::abs(a_lo), glm::abs(a_hi)), glm::max(glm::abs(b_lo), glm::abs(b_hi)));
-  const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
-  add_sweep(glm::dvec3(a_lo), glm::dvec3(a_hi), glm::dvec3(b_lo) - pad, glm::dvec3(b_hi) + pad);
+  for (int c = 0; c < count; ++c) {
+    const Cluster& k = clusters[c];
+    const glm::vec3 mag =
+        glm::max(glm::max(glm::abs(k.a_lo), glm::abs(k.a_hi)), glm::max(glm::abs(k.b_lo), glm::abs(k.b_hi)));
+    const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
+    add_sweep(glm::dvec3(k.a_lo), glm::dvec3(k.a_hi), glm::dvec3(k.b_lo) - pad, glm::dvec3(k.b_hi) + pad);
+  }
 }
 
 void MarkRecorder::mark_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo,
