@@ -438,7 +438,29 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   Cluster clusters[32];
   int count = 0;
   const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
-  for (int i = 0; i < n; ++i) {
+  // Most packets are one group: try that first.
+  bool grouped = false;
+  {
+    Cluster all{glm::vec3(kInfF), glm::vec3(-kInfF), glm::vec3(kInfF), glm::vec3(-kInfF)};
+    for (int i = 0; i < n; ++i) {
+      const glm::vec3 b = org[i] + dir[i] * t_end[i];
+      all.a_lo = glm::min(all.a_lo, org[i]);
+      all.a_hi = glm::max(all.a_hi, org[i]);
+      all.b_lo = glm::min(all.b_lo, b);
+      all.b_hi = glm::max(all.b_hi, b);
+    }
+    // Infinities and NaNs fail these (NaN compares false; inf - inf is NaN, inf > limit); a
+    // NaN lane that min and max passed over hits nothing and needs no marks.
+    const bool simple = glm::all(glm::lessThanEqual(all.a_hi - all.a_lo, limit)) &&
+                        glm::all(glm::lessThanEqual(all.b_hi - all.b_lo, limit)) && finite(all.a_lo) &&
+                        finite(all.a_hi) && finite(all.b_lo) && finite(all.b_hi);
+    if (simple && n > 0) {
+      clusters[0] = all;
+      count = 1;
+      grouped = true;
+    }
+  }
+  for (int i = 0; i < n && !grouped; ++i) {
     const glm::vec3& o = org[i];
     const glm::vec3& d = dir[i];
     if (!finite(o) || !finite(d) || !std::isfinite(t_end[i])) continue;
