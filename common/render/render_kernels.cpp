@@ -155,21 +155,87 @@ unsigned kernel_features(const FrameFeatures& f, bool aovs) {
   return need;
 }
 
+/// Least and greatest of `v` over the lanes of `m` (+inf and -inf when none), exact for finite
+/// lanes.
+template <int N>
+void lane_range(vfloat<N> v, vbool<N> m, float& lo, float& hi) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  lo = reduce_min(select(m, v, vfloat<N>(kInf)));
+  hi = reduce_max(select(m, v, vfloat<N>(-kInf)));
+}
+
+/// The box of the points (x[0], x[1], x[2]) over the lanes of `m`; false when a coordinate of
+/// one of them is not finite.
+template <int N>
+inline bool lane_box(const vfloat<N> (&x)[3], vbool<N> m, glm::vec3& lo, glm::vec3& hi) {
+  vbool<N> finite = m;
+  for (int a = 0; a < 3; ++a) {
+    lane_range<N>(x[a], m, lo[a], hi[a]);
+    finite &= (x[a] - x[a]) == vfloat<N>(0.0f);  // false for infinities and NaN
+  }
+  return bits(finite) == bits(m);
+}
+
 /// Temporal coherence: the voxels the rays of `active` crossed up to their hits, all the way
-/// on a miss (`hit` null: every lane missed).
+/// on a miss (`hit` null: every lane missed). The group's boxes are reduced here with the
+/// packet's SIMD width; the recorder takes the rays one by one only when they need it.
 template <int N>
 void mark_paths(MarkRecorder& marks, const RayLanes<N>& rays, unsigned active, const RayHit* hit) {
-  glm::vec3 org[N], dir[N];
-  float t_end[N];
+  alignas(64) float t_end[N];
+  for (int i = 0; i < N; ++i) t_end[i] = hit == nullptr || hit[i].prim == kNoHit ? rays.t_max[i] : hit[i].t;
+  const vbool<N> m = vbool<N>::from_bits(active);
+  vfloat<N> org[3], dir[3];
+  for (int a = 0; a < 3; ++a) {
+    org[a] = vfloat<N>::load(rays.org[a]);
+    dir[a] = vfloat<N>::load(rays.dir[a]);
+  }
+  const vfloat<N> t = vfloat<N>::load(t_end);
+  glm::vec3 o_lo, o_hi, d_lo, d_hi;
+  float t_lo, t_hi;
+  lane_range<N>(t, m, t_lo, t_hi);
+  const bool t_ok = bits(m & (t == t)) == active;  // no NaN (+inf is a miss)
+  if (active != 0 && t_ok && lane_box<N>(org, m, o_lo, o_hi) && lane_box<N>(dir, m, d_lo, d_hi) &&
+      marks.path_box(o_lo, o_hi, d_lo, d_hi, std::max(t_hi, 0.0f))) {
+    return;
+  }
+  glm::vec3 o[N], d[N];
+  float te[N];
   int n = 0;
   for (int i = 0; i < N; ++i) {
     if (!((active >> i) & 1u)) continue;
     const RayQuery q = rays.query(i);
+    o[n] = q.org;
+    d[n] = q.dir;
+    te[n++] = t_end[i];
+  }
+  marks.path(n, o, d, te);
+}
+
+/// Temporal coherence: the shadow segments of `lanes`, from their origins to t_max (the light).
+template <int N>
+void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) {
+  const vbool<N> m = vbool<N>::from_bits(lanes);
+  vfloat<N> a[3], b[3];
+  const vfloat<N> t = vfloat<N>::load(rays.t_max);
+  for (int k = 0; k < 3; ++k) {
+    a[k] = vfloat<N>::load(rays.org[k]);
+    b[k] = a[k] + vfloat<N>::load(rays.dir[k]) * t;  // as org + dir * t_end, lane by lane
+  }
+  glm::vec3 a_lo, a_hi, b_lo, b_hi;
+  if (lane_box<N>(a, m, a_lo, a_hi) && lane_box<N>(b, m, b_lo, b_hi) && marks.shadow_box(a_lo, a_hi, b_lo, b_hi)) {
+    return;
+  }
+  glm::vec3 org[N], dir[N];
+  float t_end[N];
+  int n = 0;
+  for (int i = 0; i < N; ++i) {
+    if (!((lanes >> i) & 1u)) continue;
+    const RayQuery q = rays.query(i);
     org[n] = q.org;
     dir[n] = q.dir;
-    t_end[n++] = hit == nullptr || hit[i].prim == kNoHit ? q.t_max : hit[i].t;
+    t_end[n++] = q.t_max;
   }
-  marks.path(n, org, dir, t_end);
+  marks.shadow(n, org, dir, t_end);
 }
 
 // Every instantiation does, for every lane, the same operations in the same order as the
@@ -259,17 +325,8 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
           // Temporal coherence: a shadow ray blocked by a mesh that never moves stays blocked
           // whatever moves, so it needs no marks (in an interior most of them; on the office
           // benchmark it halves the tiles retraced). The others may change along their whole way.
-          glm::vec3 org[N], dir[N];
-          float t_end[N];
-          int n = 0;
-          for (int i = 0; i < N; ++i) {
-            if (!((want >> i) & 1u) || ((by_static >> i) & 1u)) continue;
-            const RayQuery q = shadow.query(i);
-            org[n] = q.org;
-            dir[n] = q.dir;
-            t_end[n++] = q.t_max;
-          }
-          if (n > 0) marks->shadow(n, org, dir, t_end);
+          const unsigned open = want & ~by_static;
+          if (open != 0) mark_shadows<N>(*marks, shadow, open);
         }
         for (int i = 0; i < N; ++i) {
           if (!((want >> i) & 1u) || ((blocked >> i) & 1u)) continue;

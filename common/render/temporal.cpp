@@ -262,12 +262,27 @@ bool MarkRecorder::meets_grid(const glm::dvec3& lo_at_0, const glm::dvec3& lo_sl
   return t0 <= t1;
 }
 
+bool MarkRecorder::path_box(const glm::vec3& o_lo, const glm::vec3& o_hi, const glm::vec3& d_lo, const glm::vec3& d_hi,
+                            float t_max) {
+  if (grid_.empty() || !(o_lo.x <= o_hi.x)) return true;  // nothing to mark, or no ray
+  // At a common t every ray is in box(org) + t box(dir), a small box for a coherent packet
+  // however its rays' lengths differ. The tube's bounds are linear in t (t >= 0), so the part of
+  // [0, longest t_end] where it meets the grid takes six divisions, not six per ray.
+  const glm::dvec3 olo(o_lo), ohi(o_hi), dlo(d_lo), dhi(d_hi);
+  // A hit exactly where a moving mesh now starts must still count: reach a little past it.
+  const double t_far = std::isfinite(t_max) ? static_cast<double>(t_max) * (1.0 + 1e-6) + 1e-30 : kInf;
+  double t_lo = 0.0, t_hi = t_far;
+  if (!meets_grid(olo, dlo, ohi, dhi, t_lo, t_hi)) return true;  // passes beside it
+  if (!std::isfinite(t_hi)) return false;
+  // Widen a hair for the rounding of the divisions above.
+  t_lo = std::max(0.0, t_lo - 1e-9 * (1.0 + t_lo));
+  t_hi = std::min(t_far, t_hi + 1e-9 * (1.0 + t_hi));
+  add_tube(olo, ohi, dlo, dhi, t_lo, t_hi);
+  return true;
+}
+
 void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
   if (grid_.empty()) return;
-  // At a common t every ray is in box(org) + t box(dir), a small box for a coherent packet
-  // however its rays' lengths differ. First the whole group at once: the tube's bounds are
-  // linear in t (t >= 0), so the part of [0, longest t_end] where it meets the grid takes six
-  // divisions, not six per ray.
   {
     // Boxes of floats are exact in float: min and max round nothing.
     glm::vec3 o_lo(kInfF), o_hi(-kInfF), d_lo(kInfF), d_hi(-kInfF);
@@ -283,20 +298,7 @@ void MarkRecorder::path_group(int n, const glm::vec3* org, const glm::vec3* dir,
       d_hi = glm::max(d_hi, d);
       t_max = std::max(t_max, t_end[i]);
     }
-    if (!(o_lo.x <= o_hi.x)) return;  // no ray
-    DBox o_box, d_box;
-    o_box.lo = glm::dvec3(o_lo), o_box.hi = glm::dvec3(o_hi), d_box.lo = glm::dvec3(d_lo), d_box.hi = glm::dvec3(d_hi);
-    // A hit exactly where a moving mesh now starts must still count: reach a little past it.
-    const double t_far = std::isfinite(t_max) ? static_cast<double>(t_max) * (1.0 + 1e-6) + 1e-30 : kInf;
-    double t_lo = 0.0, t_hi = t_far;
-    if (!meets_grid(o_box.lo, d_box.lo, o_box.hi, d_box.hi, t_lo, t_hi)) return;  // passes beside it
-    if (std::isfinite(t_hi)) {
-      // Widen a hair for the rounding of the divisions above.
-      t_lo = std::max(0.0, t_lo - 1e-9 * (1.0 + t_lo));
-      t_hi = std::min(t_far, t_hi + 1e-9 * (1.0 + t_hi));
-      add_tube(o_box.lo, o_box.hi, d_box.lo, d_box.hi, t_lo, t_hi);
-      return;
-    }
+    if (path_box(o_lo, o_hi, d_lo, d_hi, t_max)) return;
     // A tube that widens in every axis (rays in several octants, unbounded) never leaves the
     // grid as a box: clip the rays one by one instead.
   }
@@ -424,6 +426,23 @@ void MarkRecorder::mark_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, con
   }
 }
 
+bool MarkRecorder::shadow_box(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
+                              const glm::vec3& b_hi) {
+  if (grid_.empty()) return true;
+  // Infinities and NaNs fail these (NaN compares false; inf - inf is NaN, inf > limit).
+  const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
+  if (!(glm::all(glm::lessThanEqual(a_hi - a_lo, limit)) && glm::all(glm::lessThanEqual(b_hi - b_lo, limit)) &&
+        finite(a_lo) && finite(a_hi) && finite(b_lo) && finite(b_hi))) {
+    return false;
+  }
+  // box(A) is exact; each B_i is within 2 ulps of max(|A_i|, |B_i|): widened in double by 1e-6
+  // of the largest magnitude, far past that rounding.
+  const glm::vec3 mag = glm::max(glm::max(glm::abs(a_lo), glm::abs(a_hi)), glm::max(glm::abs(b_lo), glm::abs(b_hi)));
+  const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
+  add_sweep(glm::dvec3(a_lo), glm::dvec3(a_hi), glm::dvec3(b_lo) - pad, glm::dvec3(b_hi) + pad);
+  return true;
+}
+
 void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
   if (grid_.empty()) return;
   // Segments from the surface points A_i to the light B_i (all the same point for one light's
@@ -439,28 +458,20 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   int count = 0;
   const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
   // Most packets are one group: try that first.
-  bool grouped = false;
   {
-    Cluster all{glm::vec3(kInfF), glm::vec3(-kInfF), glm::vec3(kInfF), glm::vec3(-kInfF)};
+    glm::vec3 a_lo(kInfF), a_hi(-kInfF), b_lo(kInfF), b_hi(-kInfF);
     for (int i = 0; i < n; ++i) {
       const glm::vec3 b = org[i] + dir[i] * t_end[i];
-      all.a_lo = glm::min(all.a_lo, org[i]);
-      all.a_hi = glm::max(all.a_hi, org[i]);
-      all.b_lo = glm::min(all.b_lo, b);
-      all.b_hi = glm::max(all.b_hi, b);
+      a_lo = glm::min(a_lo, org[i]);
+      a_hi = glm::max(a_hi, org[i]);
+      b_lo = glm::min(b_lo, b);
+      b_hi = glm::max(b_hi, b);
     }
-    // Infinities and NaNs fail these (NaN compares false; inf - inf is NaN, inf > limit); a
-    // NaN lane that min and max passed over hits nothing and needs no marks.
-    const bool simple = glm::all(glm::lessThanEqual(all.a_hi - all.a_lo, limit)) &&
-                        glm::all(glm::lessThanEqual(all.b_hi - all.b_lo, limit)) && finite(all.a_lo) &&
-                        finite(all.a_hi) && finite(all.b_lo) && finite(all.b_hi);
-    if (simple && n > 0) {
-      clusters[0] = all;
-      count = 1;
-      grouped = true;
-    }
+    // A NaN lane that min and max passed over hits nothing and needs no marks; one they kept
+    // fails shadow_box's checks.
+    if (n > 0 && shadow_box(a_lo, a_hi, b_lo, b_hi)) return;
   }
-  for (int i = 0; i < n && !grouped; ++i) {
+  for (int i = 0; i < n; ++i) {
     const glm::vec3& o = org[i];
     const glm::vec3& d = dir[i];
     if (!finite(o) || !finite(d) || !std::isfinite(t_end[i])) continue;
@@ -491,10 +502,12 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   }
   for (int c = 0; c < count; ++c) {
     const Cluster& k = clusters[c];
-    const glm::vec3 mag =
-        glm::max(glm::max(glm::abs(k.a_lo), glm::abs(k.a_hi)), glm::max(glm::abs(k.b_lo), glm::abs(k.b_hi)));
-    const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
-    add_sweep(glm::dvec3(k.a_lo), glm::dvec3(k.a_hi), glm::dvec3(k.b_lo) - pad, glm::dvec3(k.b_hi) + pad);
+    if (!shadow_box(k.a_lo, k.a_hi, k.b_lo, k.b_hi)) {  // the first one, over full: as it is
+      const glm::vec3 mag =
+          glm::max(glm::max(glm::abs(k.a_lo), glm::abs(k.a_hi)), glm::max(glm::abs(k.b_lo), glm::abs(k.b_hi)));
+      const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
+      add_sweep(glm::dvec3(k.a_lo), glm::dvec3(k.a_hi), glm::dvec3(k.b_lo) - pad, glm::dvec3(k.b_hi) + pad);
+    }
   }
 }
 

@@ -102,6 +102,17 @@ class MarkRecorder {
   void path(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) { path_group(n, org, dir, t_end); }
   /// Shadow segments, t in [0, t_end_i] (finite; the light at t_end).
   void shadow(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) { shadow_group(n, org, dir, t_end); }
+  /// The same for a group the caller has already reduced to boxes (the kernels do it with SIMD):
+  /// its rays' origins in [o_lo, o_hi], directions in [d_lo, d_hi], the longest t_end t_max,
+  /// every value finite but t_max. False when the group must be marked ray by ray (a tube
+  /// unbounded in every axis): call path() with the rays then.
+  [[nodiscard]] bool path_box(const glm::vec3& o_lo, const glm::vec3& o_hi, const glm::vec3& d_lo,
+                              const glm::vec3& d_hi, float t_max);
+  /// Shadow segments from surface points in [a_lo, a_hi] to ends in [b_lo, b_hi] (the ends as
+  /// org + dir * t_end in float). False when the boxes are wider than one group or not finite:
+  /// call shadow() with the rays then.
+  [[nodiscard]] bool shadow_box(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
+                                const glm::vec3& b_hi);
   void shaded() { shaded_ = true; }
   [[nodiscard]] bool grid_empty() const { return grid_.empty(); }
   /// Moves the record into `out` and starts a new one.

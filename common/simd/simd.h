@@ -89,6 +89,9 @@ struct vint<1> {
 
 inline vfloat<1> min(vfloat<1> a, vfloat<1> b) { return a.v < b.v ? a : b; }
 inline vfloat<1> max(vfloat<1> a, vfloat<1> b) { return a.v > b.v ? a : b; }
+/// The least and greatest lane (for finite lanes; with NaN lanes the result is unspecified).
+inline float reduce_min(vfloat<1> a) { return a.v; }
+inline float reduce_max(vfloat<1> a) { return a.v; }
 inline vfloat<1> select(vbool<1> m, vfloat<1> a, vfloat<1> b) { return m.m ? a : b; }
 inline vint<1> select(vbool<1> m, vint<1> a, vint<1> b) { return m.m ? a : b; }
 inline bool any(vbool<1> m) { return m.m; }
@@ -189,6 +192,14 @@ struct vint<4> {
 // minps/maxps: the second operand when either is NaN; the N = 1 versions match.
 inline vfloat<4> min(vfloat<4> a, vfloat<4> b) { return vfloat<4>(_mm_min_ps(a.v, b.v)); }
 inline vfloat<4> max(vfloat<4> a, vfloat<4> b) { return vfloat<4>(_mm_max_ps(a.v, b.v)); }
+inline float reduce_min(vfloat<4> a) {
+  const __m128 t = _mm_min_ps(a.v, _mm_shuffle_ps(a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2)));
+  return _mm_cvtss_f32(_mm_min_ps(t, _mm_shuffle_ps(t, t, _MM_SHUFFLE(2, 3, 0, 1))));
+}
+inline float reduce_max(vfloat<4> a) {
+  const __m128 t = _mm_max_ps(a.v, _mm_shuffle_ps(a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2)));
+  return _mm_cvtss_f32(_mm_max_ps(t, _mm_shuffle_ps(t, t, _MM_SHUFFLE(2, 3, 0, 1))));
+}
 inline vfloat<4> select(vbool<4> m, vfloat<4> a, vfloat<4> b) {
   return vfloat<4>(_mm_blendv_ps(b.v, a.v, m.m));
 }
@@ -295,6 +306,12 @@ struct vint<8> {
 
 inline vfloat<8> min(vfloat<8> a, vfloat<8> b) { return vfloat<8>(_mm256_min_ps(a.v, b.v)); }
 inline vfloat<8> max(vfloat<8> a, vfloat<8> b) { return vfloat<8>(_mm256_max_ps(a.v, b.v)); }
+inline float reduce_min(vfloat<8> a) {
+  return reduce_min(vfloat<4>(_mm_min_ps(_mm256_castps256_ps128(a.v), _mm256_extractf128_ps(a.v, 1))));
+}
+inline float reduce_max(vfloat<8> a) {
+  return reduce_max(vfloat<4>(_mm_max_ps(_mm256_castps256_ps128(a.v), _mm256_extractf128_ps(a.v, 1))));
+}
 inline vfloat<8> select(vbool<8> m, vfloat<8> a, vfloat<8> b) {
   return vfloat<8>(_mm256_blendv_ps(b.v, a.v, m.m));
 }
@@ -389,6 +406,22 @@ struct vint<16> {
 // placeholder that trips -Wuninitialized. Same instruction, same NaN rule.
 inline vfloat<16> min(vfloat<16> a, vfloat<16> b) { return vfloat<16>(_mm512_maskz_min_ps(0xFFFF, a.v, b.v)); }
 inline vfloat<16> max(vfloat<16> a, vfloat<16> b) { return vfloat<16>(_mm512_maskz_max_ps(0xFFFF, a.v, b.v)); }
+// Within the 512-bit register, in the zero-masking forms (as above: the plain shuffles and the
+// 256-bit casts read an uninitialised placeholder that trips GCC 12).
+inline float reduce_min(vfloat<16> a) {
+  vfloat<16> t = min(a, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = min(t, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  t = min(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = min(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  return _mm512_cvtss_f32(t.v);
+}
+inline float reduce_max(vfloat<16> a) {
+  vfloat<16> t = max(a, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = max(t, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  t = max(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = max(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  return _mm512_cvtss_f32(t.v);
+}
 inline vfloat<16> select(vbool<16> m, vfloat<16> a, vfloat<16> b) {
   return vfloat<16>(_mm512_mask_blend_ps(m.m, b.v, a.v));
 }
