@@ -25,7 +25,7 @@ constexpr double kPiecesPerCell = 1;
 constexpr double kMergeCells = 0.25;
 
 /// Widest (in cells, per axis) a group of shadow rays' surface points may be to be swept as one.
-constexpr double kClusterCells = 0.5;
+constexpr double kClusterCells = 1.0;
 
 struct DBox {
   glm::dvec3 lo{kInf};
@@ -382,8 +382,9 @@ void MarkRecorder::add_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, con
   // The same for shadow sweeps towards one light (the far ends nearly one point): a few kept
   // open at once, one per light in turn.
   for (Sweep& w : sweeps_) {
-    if (w.live && unites(a_lo, a_hi, w.a_lo, w.a_hi, cell_ * kMergeCells) &&
-        unites(b_lo, b_hi, w.b_lo, w.b_hi, cell_ * kMergeCells)) {
+    // The light ends first: sweeps to another light fail there at once.
+    if (w.live && unites(b_lo, b_hi, w.b_lo, w.b_hi, cell_ * kMergeCells) &&
+        unites(a_lo, a_hi, w.a_lo, w.a_hi, cell_ * kMergeCells)) {
       w.a_lo = glm::min(w.a_lo, a_lo);
       w.a_hi = glm::max(w.a_hi, a_hi);
       w.b_lo = glm::min(w.b_lo, b_lo);

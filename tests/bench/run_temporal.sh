@@ -6,7 +6,7 @@
 # time and the tiles retraced. Then a master with 2 local workers renders the animation both
 # ways and its stats JSON gives the bytes each frame put on the wire. Figures are medians
 # over the runs.
-# Usage: [TILE=16] [FIRST=9] tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
+# Usage: [TILE=16] [FIRST=15] tests/bench/run_temporal.sh [THREADS] [REPEAT] [ANIMATION.json ...]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 threads=${1:-1}
@@ -14,7 +14,7 @@ repeat=${2:-3}
 # Both modes at the tile size temporal coherence uses by default (kTemporalTileSize), so full
 # and incremental frames cut the image alike; TILE=32 gives the other default.
 tile=${TILE:-16}
-first=${FIRST:-9}
+first=${FIRST:-15}
 # "A-B" of an animation's first two frames (temporal coherence needs more than one frame).
 first_two() {
   if [ "$1" = default ]; then echo 0-1; else
