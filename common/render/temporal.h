@@ -90,7 +90,7 @@ struct TileMarks {
 ///   on to the longest one's end, a little more than it crossed);
 /// - shadow rays: every point is (1 - s) A_i + s B_i between the surface point A_i and the light
 ///   B_i (one point for a packet), inside the box swept from box(A) to box(B); the lanes are
-///   first gathered into groups whose surface points lie within half a cell of each other, so a
+///   first gathered into groups whose surface points lie within a cell of each other, so a
 ///   packet across a depth edge sweeps two thin boxes, not one as wide as the gap (on the office
 ///   benchmark that cut the shadow voxels marked 10-30x and the tiles retraced by a fifth).
 /// Conservative: every voxel a ray crosses is marked (and some beside it); boxes are padded
