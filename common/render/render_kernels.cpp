@@ -501,16 +501,19 @@ using TileFn = void (*)(const FrameState&, int, int, int, int, Image&, TileRayCo
                         const FrustumCull*);
 
 // The instantiations compiled; a frame gets the one with the fewest features that covers its own.
-// Each costs compile time (this file is compiled once per ISA): these three per width add ~10%
-// to the file's (14-15 s of CPU for the three ISAs before, 15-16 s after); all twelve distinct
-// masks took ~2.3x. Only what measured faster than the general kernel is here (1 thread, CPU
-// time, rtc-bench --kernel-ab's paired runs; tests/bench/results/specialise.md): the ray-cast
-// kernel (no lights, no mirrors) takes 0.61-0.63 of the general one's time without depth and
-// normal channels and 0.90-0.93 with them. Left out: lights and mirrors without AOVs, 0.96-0.99
-// (another ~1.5 s of compile time, for renders without depth and normal only); no mirrors, no
-// lights or no highlights alone, 0.97-1.00, within this machine's noise (the same kernel timed
-// against itself drifts by up to 3%).
-constexpr unsigned kCompiled[] = {0u, kAovs, kAll};
+// Each costs compile time (this file is compiled once per ISA; all twelve distinct masks took
+// ~2.3x the time of the general kernel alone), so these five are the ones scenes need:
+// - the ray-cast kernel (no lights, no mirrors), with and without depth and normal channels:
+//   0.61-0.63 of the general one's time without them, 0.90-0.93 with them;
+// - lights without mirrors, with and without the channels: ten of the sixteen shared views (all
+//   but the interiors, balls-s3, gears, teapot and the small mountain) have lights and no
+//   mirror; this kernel never tests a hit for reflection, at 0.99-1.01 of the general kernel's
+//   time (tests/bench/results/specialise.md): the test was cheap. The five take 18.4-19.9 s of
+//   CPU to compile for the three ISAs, against 15.3-16.3 s for three (kernel_compile_time.sh);
+// - the general kernel, which tests for everything as it goes.
+// Left out: no lights with mirrors (the general kernel's light loop then runs over no lights and
+// traces no shadow ray anyway), and no highlights alone (a per-material test either way).
+constexpr unsigned kCompiled[] = {0u, kAovs, kShadows | kHighlights, kShadows | kHighlights | kAovs, kAll};
 
 template <int N, std::size_t... I>
 constexpr std::array<TileFn, sizeof...(I)> tile_kernels(std::index_sequence<I...>) {
@@ -546,7 +549,9 @@ void render_tile_entry(const FrameState& fs, int x0, int y0, int w, int h, const
 const char* kernel_name_entry(const FrameState& fs, const TileKernelOptions& options, bool aovs) {
   const unsigned f = kCompiled[compiled_for(need_of(fs, options, aovs))];
   if (f == kAll) return "general";
-  return (f & (kShadows | kReflections)) == 0 ? ((f & kAovs) != 0 ? "ray-cast+aovs" : "ray-cast") : "specialised";
+  if ((f & (kShadows | kReflections)) == 0) return (f & kAovs) != 0 ? "ray-cast+aovs" : "ray-cast";
+  if ((f & kReflections) == 0) return (f & kAovs) != 0 ? "no-mirror+aovs" : "no-mirror";
+  return "specialised";
 }
 
 }  // namespace

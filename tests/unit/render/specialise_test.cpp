@@ -68,6 +68,7 @@ std::vector<Variant> variants() {
       {"default_no_aovs", base, false},
       {"no_lights", without_lights(base), true},
       {"no_mirrors", without_mirrors(base), true},
+      {"no_mirrors_no_aovs", without_mirrors(base), false},
       {"neither", without_lights(without_mirrors(base)), true},
       {"neither_no_aovs", without_lights(without_mirrors(base)), false},
       {"neither_spp3", neither_spp3, true},
@@ -155,6 +156,10 @@ TEST(Specialise, FeaturesFoundOncePerFrame) {
   EXPECT_EQ(kernel(without_lights(shallow), true, true), "ray-cast+aovs");
   EXPECT_EQ(kernel(base, true, true), "general");
   EXPECT_EQ(kernel(without_lights(base), true, false), "general");
+  EXPECT_EQ(kernel(without_mirrors(base), true, true), "no-mirror+aovs");
+  EXPECT_EQ(kernel(without_mirrors(base), true, false), "no-mirror");
+  EXPECT_EQ(kernel(without_mirrors(base), false, false), "general");
+  EXPECT_EQ(kernel(shallow, true, false), "no-mirror");  // no reflection ray can be traced
 
   // A frame that reuses the last one's geometry (the camera moved) is analysed again.
   Scene moving = without_mirrors(base);
