@@ -176,6 +176,23 @@ inline bool lane_box(const vfloat<N> (&x)[3], vbool<N> m, glm::vec3& lo, glm::ve
   return bits(finite) == bits(m);
 }
 
+/// The rays of `lanes` one by one, ends t_end[lane], for the recorder's per-ray entries.
+template <int N>
+struct RayList {
+  RayList(const RayLanes<N>& rays, unsigned lanes, const float* ends) {
+    for (int i = 0; i < N; ++i) {
+      if (!((lanes >> i) & 1u)) continue;
+      const RayQuery q = rays.query(i);
+      org[n] = q.org;
+      dir[n] = q.dir;
+      t_end[n++] = ends[i];
+    }
+  }
+  glm::vec3 org[N], dir[N];
+  float t_end[N];
+  int n = 0;
+};
+
 /// Temporal coherence: the voxels the rays of `active` crossed up to their hits, all the way
 /// on a miss (`hit` null: every lane missed). The group's boxes are reduced here with the
 /// packet's SIMD width; the recorder takes the rays one by one only when they need it.
@@ -198,17 +215,8 @@ void mark_paths(MarkRecorder& marks, const RayLanes<N>& rays, unsigned active, c
       marks.path_box(o_lo, o_hi, d_lo, d_hi, std::max(t_hi, 0.0f))) {
     return;
   }
-  glm::vec3 o[N], d[N];
-  float te[N];
-  int n = 0;
-  for (int i = 0; i < N; ++i) {
-    if (!((active >> i) & 1u)) continue;
-    const RayQuery q = rays.query(i);
-    o[n] = q.org;
-    d[n] = q.dir;
-    te[n++] = t_end[i];
-  }
-  marks.path(n, o, d, te);
+  RayList<N> list(rays, active, t_end);
+  marks.path(list.n, list.org, list.dir, list.t_end);
 }
 
 /// Temporal coherence: the shadow segments of `lanes`, from their origins to t_max (the light).
@@ -225,17 +233,8 @@ void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) 
   if (lane_box<N>(a, m, a_lo, a_hi) && lane_box<N>(b, m, b_lo, b_hi) && marks.shadow_box(a_lo, a_hi, b_lo, b_hi)) {
     return;
   }
-  glm::vec3 org[N], dir[N];
-  float t_end[N];
-  int n = 0;
-  for (int i = 0; i < N; ++i) {
-    if (!((lanes >> i) & 1u)) continue;
-    const RayQuery q = rays.query(i);
-    org[n] = q.org;
-    dir[n] = q.dir;
-    t_end[n++] = q.t_max;
-  }
-  marks.shadow(n, org, dir, t_end);
+  RayList<N> list(rays, lanes, rays.t_max);
+  marks.shadow(list.n, list.org, list.dir, list.t_end);
 }
 
 // Every instantiation does, for every lane, the same operations in the same order as the

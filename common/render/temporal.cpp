@@ -436,20 +436,23 @@ bool MarkRecorder::shadow_box(const glm::vec3& a_lo, const glm::vec3& a_hi, cons
         finite(a_lo) && finite(a_hi) && finite(b_lo) && finite(b_hi))) {
     return false;
   }
+  add_float_sweep(a_lo, a_hi, b_lo, b_hi);
+  return true;
+}
+
+void MarkRecorder::add_float_sweep(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
+                                   const glm::vec3& b_hi) {
   // box(A) is exact; each B_i is within 2 ulps of max(|A_i|, |B_i|): widened in double by 1e-6
   // of the largest magnitude, far past that rounding.
   const glm::vec3 mag = glm::max(glm::max(glm::abs(a_lo), glm::abs(a_hi)), glm::max(glm::abs(b_lo), glm::abs(b_hi)));
   const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
   add_sweep(glm::dvec3(a_lo), glm::dvec3(a_hi), glm::dvec3(b_lo) - pad, glm::dvec3(b_hi) + pad);
-  return true;
 }
 
 void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* dir, const float* t_end) {
   if (grid_.empty()) return;
   // Segments from the surface points A_i to the light B_i (all the same point for one light's
   // packet): every point is (1 - s) A_i + s B_i, inside the box swept from box(A) to box(B).
-  // In float (box(A) exact; each B_i within 2 ulps of max(|A_i|, |B_i|)), then widened in
-  // double by 1e-6 of the largest magnitude, far past that rounding.
   // Lanes whose surface points lie far apart (a packet across a depth edge) are swept apart:
   // one sweep over all of them would be as wide as the gap all the way to the light.
   struct Cluster {
@@ -503,12 +506,8 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   }
   for (int c = 0; c < count; ++c) {
     const Cluster& k = clusters[c];
-    if (!shadow_box(k.a_lo, k.a_hi, k.b_lo, k.b_hi)) {  // the first one, over full: as it is
-      const glm::vec3 mag =
-          glm::max(glm::max(glm::abs(k.a_lo), glm::abs(k.a_hi)), glm::max(glm::abs(k.b_lo), glm::abs(k.b_hi)));
-      const double pad = 1e-6 * static_cast<double>(std::max({mag.x, mag.y, mag.z}));
-      add_sweep(glm::dvec3(k.a_lo), glm::dvec3(k.a_hi), glm::dvec3(k.b_lo) - pad, glm::dvec3(k.b_hi) + pad);
-    }
+    // Every group fits the limit but the first one once all the others are full: as it is.
+    if (!shadow_box(k.a_lo, k.a_hi, k.b_lo, k.b_hi)) add_float_sweep(k.a_lo, k.a_hi, k.b_lo, k.b_hi);
   }
 }
 

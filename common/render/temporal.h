@@ -131,6 +131,8 @@ class MarkRecorder {
   void add_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, const glm::dvec3& d_lo, const glm::dvec3& d_hi,
                 double t_lo, double t_hi);
   void add_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo, const glm::dvec3& b_hi);
+  /// add_sweep of float boxes, the light ends padded past the rounding of org + dir * t_end.
+  void add_float_sweep(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo, const glm::vec3& b_hi);
   void flush();
   /// Shadow marks of the box swept from [a_lo, a_hi] to [b_lo, b_hi].
   void mark_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo, const glm::dvec3& b_hi);
