@@ -431,13 +431,17 @@ bool MarkRecorder::shadow_box(const glm::vec3& a_lo, const glm::vec3& a_hi, cons
                               const glm::vec3& b_hi) {
   if (grid_.empty()) return true;
   // Infinities and NaNs fail these (NaN compares false; inf - inf is NaN, inf > limit).
-  const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
-  if (!(glm::all(glm::lessThanEqual(a_hi - a_lo, limit)) && glm::all(glm::lessThanEqual(b_hi - b_lo, limit)) &&
-        finite(a_lo) && finite(a_hi) && finite(b_lo) && finite(b_hi))) {
+  if (!(one_group(a_lo, a_hi, b_lo, b_hi) && finite(a_lo) && finite(a_hi) && finite(b_lo) && finite(b_hi))) {
     return false;
   }
   add_float_sweep(a_lo, a_hi, b_lo, b_hi);
   return true;
+}
+
+bool MarkRecorder::one_group(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
+                             const glm::vec3& b_hi) const {
+  const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
+  return glm::all(glm::lessThanEqual(a_hi - a_lo, limit)) && glm::all(glm::lessThanEqual(b_hi - b_lo, limit));
 }
 
 void MarkRecorder::add_float_sweep(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
@@ -454,27 +458,13 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
   // Segments from the surface points A_i to the light B_i (all the same point for one light's
   // packet): every point is (1 - s) A_i + s B_i, inside the box swept from box(A) to box(B).
   // Lanes whose surface points lie far apart (a packet across a depth edge) are swept apart:
-  // one sweep over all of them would be as wide as the gap all the way to the light.
+  // one sweep over all of them would be as wide as the gap all the way to the light. (The tile
+  // kernels try the packet as one group first, shadow_box; they come here when it is not.)
   struct Cluster {
     glm::vec3 a_lo, a_hi, b_lo, b_hi;
   };
   Cluster clusters[32];
   int count = 0;
-  const glm::vec3 limit = glm::vec3(cell_ * kClusterCells);
-  // Most packets are one group: try that first.
-  {
-    glm::vec3 a_lo(kInfF), a_hi(-kInfF), b_lo(kInfF), b_hi(-kInfF);
-    for (int i = 0; i < n; ++i) {
-      const glm::vec3 b = org[i] + dir[i] * t_end[i];
-      a_lo = glm::min(a_lo, org[i]);
-      a_hi = glm::max(a_hi, org[i]);
-      b_lo = glm::min(b_lo, b);
-      b_hi = glm::max(b_hi, b);
-    }
-    // A NaN lane that min and max passed over hits nothing and needs no marks; one they kept
-    // fails shadow_box's checks.
-    if (n > 0 && shadow_box(a_lo, a_hi, b_lo, b_hi)) return;
-  }
   for (int i = 0; i < n; ++i) {
     const glm::vec3& o = org[i];
     const glm::vec3& d = dir[i];
@@ -490,7 +480,7 @@ void MarkRecorder::shadow_group(int n, const glm::vec3* org, const glm::vec3* di
       Cluster& k = clusters[c];
       const glm::vec3 a_lo = glm::min(k.a_lo, o), a_hi = glm::max(k.a_hi, o);
       const glm::vec3 b_lo = glm::min(k.b_lo, b), b_hi = glm::max(k.b_hi, b);
-      if (glm::all(glm::lessThanEqual(a_hi - a_lo, limit)) && glm::all(glm::lessThanEqual(b_hi - b_lo, limit))) {
+      if (one_group(a_lo, a_hi, b_lo, b_hi)) {
         k = Cluster{a_lo, a_hi, b_lo, b_hi};
         break;
       }

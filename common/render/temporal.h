@@ -131,6 +131,10 @@ class MarkRecorder {
   void add_tube(const glm::dvec3& o_lo, const glm::dvec3& o_hi, const glm::dvec3& d_lo, const glm::dvec3& d_hi,
                 double t_lo, double t_hi);
   void add_sweep(const glm::dvec3& a_lo, const glm::dvec3& a_hi, const glm::dvec3& b_lo, const glm::dvec3& b_hi);
+  /// Whether shadow rays with surface points in [a_lo, a_hi] and ends in [b_lo, b_hi] are close
+  /// enough to be swept as one group (kClusterCells per axis).
+  [[nodiscard]] bool one_group(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo,
+                               const glm::vec3& b_hi) const;
   /// add_sweep of float boxes, the light ends padded past the rounding of org + dir * t_end.
   void add_float_sweep(const glm::vec3& a_lo, const glm::vec3& a_hi, const glm::vec3& b_lo, const glm::vec3& b_hi);
   void flush();

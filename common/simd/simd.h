@@ -192,14 +192,14 @@ struct vint<4> {
 // minps/maxps: the second operand when either is NaN; the N = 1 versions match.
 inline vfloat<4> min(vfloat<4> a, vfloat<4> b) { return vfloat<4>(_mm_min_ps(a.v, b.v)); }
 inline vfloat<4> max(vfloat<4> a, vfloat<4> b) { return vfloat<4>(_mm_max_ps(a.v, b.v)); }
-inline float reduce_min(vfloat<4> a) {
-  const __m128 t = _mm_min_ps(a.v, _mm_shuffle_ps(a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2)));
-  return _mm_cvtss_f32(_mm_min_ps(t, _mm_shuffle_ps(t, t, _MM_SHUFFLE(2, 3, 0, 1))));
+/// `op` (min or max) over the lanes: pairs of halves, then of neighbours.
+template <class Op>
+inline float reduce_lanes(vfloat<4> a, Op op) {
+  const vfloat<4> t = op(a, vfloat<4>(_mm_shuffle_ps(a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  return _mm_cvtss_f32(op(t, vfloat<4>(_mm_shuffle_ps(t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1)))).v);
 }
-inline float reduce_max(vfloat<4> a) {
-  const __m128 t = _mm_max_ps(a.v, _mm_shuffle_ps(a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2)));
-  return _mm_cvtss_f32(_mm_max_ps(t, _mm_shuffle_ps(t, t, _MM_SHUFFLE(2, 3, 0, 1))));
-}
+inline float reduce_min(vfloat<4> a) { return reduce_lanes(a, [](vfloat<4> x, vfloat<4> y) { return min(x, y); }); }
+inline float reduce_max(vfloat<4> a) { return reduce_lanes(a, [](vfloat<4> x, vfloat<4> y) { return max(x, y); }); }
 inline vfloat<4> select(vbool<4> m, vfloat<4> a, vfloat<4> b) {
   return vfloat<4>(_mm_blendv_ps(b.v, a.v, m.m));
 }
@@ -408,19 +408,19 @@ inline vfloat<16> min(vfloat<16> a, vfloat<16> b) { return vfloat<16>(_mm512_mas
 inline vfloat<16> max(vfloat<16> a, vfloat<16> b) { return vfloat<16>(_mm512_maskz_max_ps(0xFFFF, a.v, b.v)); }
 // Within the 512-bit register, in the zero-masking forms (as above: the plain shuffles and the
 // 256-bit casts read an uninitialised placeholder that trips GCC 12).
-inline float reduce_min(vfloat<16> a) {
-  vfloat<16> t = min(a, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  t = min(t, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
-  t = min(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  t = min(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+template <class Op>
+inline float reduce_lanes(vfloat<16> a, Op op) {
+  vfloat<16> t = op(a, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = op(t, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  t = op(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  t = op(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
   return _mm512_cvtss_f32(t.v);
 }
+inline float reduce_min(vfloat<16> a) {
+  return reduce_lanes(a, [](vfloat<16> x, vfloat<16> y) { return min(x, y); });
+}
 inline float reduce_max(vfloat<16> a) {
-  vfloat<16> t = max(a, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, a.v, a.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  t = max(t, vfloat<16>(_mm512_maskz_shuffle_f32x4(0xFFFF, t.v, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
-  t = max(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  t = max(t, vfloat<16>(_mm512_maskz_permute_ps(0xFFFF, t.v, _MM_SHUFFLE(2, 3, 0, 1))));
-  return _mm512_cvtss_f32(t.v);
+  return reduce_lanes(a, [](vfloat<16> x, vfloat<16> y) { return max(x, y); });
 }
 inline vfloat<16> select(vbool<16> m, vfloat<16> a, vfloat<16> b) {
   return vfloat<16>(_mm512_mask_blend_ps(m.m, b.v, a.v));
