@@ -258,7 +258,7 @@ case_temporal() {
 case_bench_json_dump() {
   [[ -n $bench ]] || fail "no rtc-bench given"
   write_small_scene
-  run bench "$bench" "$work/view.json" --json --mode primary --reps 1 --dump "$work/tiny"
+  run bench "$bench" "$work/view.json" --json --mode primary --reps 2 --build-reps 1 --dump "$work/tiny"
   expect_rc bench 0
   [[ -s $work/bench.out ]] || { show bench >&2; fail "no JSON printed"; }
   python3 - "$work" <<'EOF' || { show bench >&2; fail "rtc-bench JSON or dump check failed"; }
@@ -289,7 +289,7 @@ for n, line in enumerate(lines, 1):
         errors.append(f"line {n}: threads = {obj.get('threads')!r}")
     if not (isinstance(obj.get("isa"), str) and obj["isa"]):
         errors.append(f"line {n}: isa = {obj.get('isa')!r}")
-    for field in ("build_ms", "mrays_per_s", "frame_ms"):
+    for field in ("build_ms", "mrays_per_s", "frame_ms", "mrays_per_s_refined"):
         v = obj.get(field)
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
             errors.append(f"line {n}: {field} = {v!r} is not a finite non-negative number")
