@@ -78,7 +78,10 @@ static_assert(sizeof(TriRecord) == 48 && alignof(TriRecord) == 16);
 
 /// Build parameters: the SAH cost model (Wald & Havran 2006) and termination limits.
 struct KdBuildOptions {
-  float traversal_cost = 2.0f;     ///< K_T, cost of one traversal step (2 measured best for 8/16-wide packets)
+  /// K_T, cost of one traversal step. 3: over the 16 shared views the same trace speed as 2
+  /// (16-wide primary rays 1.02x, shadow rays 1.05x, medians) with 40% fewer nodes and builds
+  /// 0.67-0.91x the time (tests/bench/results/kd_cost.md); 2 had been measured faster than 1.
+  float traversal_cost = 3.0f;
   float intersection_cost = 1.5f;  ///< K_I, cost of one triangle test
   float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60

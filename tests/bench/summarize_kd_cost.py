@@ -1,0 +1,61 @@
+#!/usr/bin/env python3
+"""Turns tests/bench/run_kd_cost.sh's lines into tests/bench/results/kd_cost.md.
+
+Per view: triangles; nodes, SAH and the median build time at each K_T; the median over rounds of
+the paired throughput ratio (second K_T over first, same round) for primary and shadow rays.
+"""
+import collections
+import statistics
+import sys
+
+
+def main(path):
+    runs = collections.defaultdict(dict)  # (scene, mode, round) -> {kt: (mrays, build, nodes, sah, tris)}
+    for line in open(path):
+        p = line.split()
+        if len(p) != 9:
+            continue
+        scene, kt, rnd, mode = p[0], p[1], p[2], p[3]
+        runs[(scene, mode, rnd)][kt] = (float(p[4]), float(p[5]), int(p[6]), float(p[7]), int(p[8]))
+    kts = sorted({kt for v in runs.values() for kt in v}, key=float)
+    if len(kts) != 2:
+        sys.exit(f"summarize_kd_cost: expected two K_T values, found {kts}")
+    a, b = kts
+    scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
+    print(f"# SAH traversal cost K_T = {a} against K_T = {b}\n")
+    print("`tests/bench/run_kd_cost.sh` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
+          "process CPU time, `--reps 5 --build-reps 3`, the two values alternating view by view in each round. "
+          f"Ratios are K_T = {b} over K_T = {a}, paired within a round; the median over the rounds comes first, the "
+          "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "
+          "kd-tree). The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. On this "
+          "VM one binary's runs vary by 10-15%: a view whose tree did not change (equal node counts) shows that noise.\n")
+    print(f"| view | tris | nodes {a} → {b} | SAH {a} → {b} | build ms {a} → {b} | primary {b}/{a} | shadow {b}/{a} |")
+    print("|---|---:|---|---|---|---|---|")
+    medians = {"primary": [], "shadow": []}
+    builds = []
+    for s in scenes:
+        cells = {}
+        for mode in ("primary", "shadow"):
+            pairs = [v for k, v in runs.items() if k[0] == s and k[1] == mode and a in v and b in v]
+            ratios = sorted(v[b][0] / v[a][0] for v in pairs)
+            cells[mode] = ratios
+            medians[mode].append(statistics.median(ratios))
+        pairs = [v for k, v in runs.items() if k[0] == s and k[1] == "primary" and a in v and b in v]
+        build_a = statistics.median(v[a][1] for v in pairs)
+        build_b = statistics.median(v[b][1] for v in pairs)
+        first = pairs[0]
+        build_ratio = f" ({build_b / build_a:.2f})" if build_a >= 10 else ""
+        if build_a >= 10:
+            builds.append(build_b / build_a)
+        text = {m: f"{statistics.median(r):.2f} ({', '.join(f'{x:.2f}' for x in r)})" for m, r in cells.items()}
+        print(f"| {s} | {first[a][4]:,} | {first[a][2]:,} → {first[b][2]:,} | {first[a][3]} → {first[b][3]} | "
+              f"{build_a:.0f} → {build_b:.0f}{build_ratio} | {text['primary']} | {text['shadow']} |")
+    print()
+    print(f"Over the views: primary {b}/{a} median {statistics.median(medians['primary']):.2f} "
+          f"(views {min(medians['primary']):.2f}-{max(medians['primary']):.2f}), shadow median "
+          f"{statistics.median(medians['shadow']):.2f} ({min(medians['shadow']):.2f}-{max(medians['shadow']):.2f}); "
+          f"builds of 10 ms or more {min(builds):.2f}-{max(builds):.2f}x the time (median {statistics.median(builds):.2f}).")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
