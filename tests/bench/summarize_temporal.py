@@ -122,10 +122,11 @@ def table(path):
         # ratios, each the quotient of two noisy ~100 ms samples.
         over_sum = sum_on / sum_off - 1 if sum_off else float("nan")
 
-        def rng(xs, fmt):
+        def rng(xs, fmt, center=None):
+            """`center` (default: the median of xs) [min to max]."""
             if not xs:
                 return "n/a"
-            return fmt(med(xs)) + " [" + fmt(min(xs)) + " to " + fmt(max(xs)) + "]"
+            return fmt(med(xs) if center is None else center) + " [" + fmt(min(xs)) + " to " + fmt(max(xs)) + "]"
 
         traced = [by[("on", f)][0].get("traced", 0) for f in later if ("on", f) in by]
         tiles = by[("on", frames[0])][0].get("tiles", 0) if ("on", frames[0]) in by else 0
@@ -139,7 +140,7 @@ def table(path):
         n = len(later)
         print(f"| {s} | {len(frames)} | {tiles} | {statistics.mean(traced):.0f} ({min(traced)}-{max(traced)}) | "
               f"{full / n:.0f} | {inc / n:.0f} | **{rng(speed, lambda v: f'{v:.2f}x')}** | "
-              f"{rng(speed_r, lambda v: f'{v:.2f}x')} | {f'{100 * over_sum:+.0f}%' if over_r else 'n/a'}{(' [' + f'{100 * min(over_r):+.0f}% to {100 * max(over_r):+.0f}%' + ']') if over_r else ''} | "
+              f"{rng(speed_r, lambda v: f'{v:.2f}x')} | {rng(over_r, lambda v: f'{100 * v:+.0f}%', over_sum)} | "
               f"{wf:.0f} | {wi:.0f} | {wm:.1f} | {100 * (1 - wi / wf):.0f}% |")
 
 
