@@ -86,6 +86,12 @@ struct KdBuildOptions {
   float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
   int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves
+  /// Subtrees of at most this many references (0 to 64) are built with bit masks over their
+  /// references (Zhou, Hou, Wang, Guo 2008, section 4.3): each node's SAH counts are popcounts
+  /// against masks computed once at the subtree's root. The same SAH and planes as the event
+  /// sweep except that straddling triangles are not clipped again below that root (the tree is
+  /// identical with clip off). 0: the event sweep down to the leaves.
+  int mask_below = 64;
   int threads = 0;                 ///< 0: all cores (TBB's default)
   /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
   /// references are the same either way (the same triangles are left out as degenerate).

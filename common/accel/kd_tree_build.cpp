@@ -2,7 +2,9 @@
 // (Shevtsov, Soupikov, Kapustin 2007, section 3), binned and partitioned in parallel near the
 // root; subtrees of at most a few thousand references take the exact O(N log N) event sweep of
 // Wald & Havran 2006 in flat per-thread buffers, with straddling triangles clipped to each
-// child ("perfect splits", section 4.3). Parallel over subtrees (TBB).
+// child ("perfect splits", section 4.3); subtrees of at most 64 references finish with the same
+// SAH over bit masks of their references (Zhou, Hou, Wang, Guo 2008, section 4.3), without
+// further clipping. Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -65,6 +67,7 @@ struct BuildContext {
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
   float sah_scale = 1.0f;       // see sah_scale_for()
   bool clip = true;             // KdBuildOptions::clip
+  std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most 64
 };
 
 // SAH areas are computed with every length multiplied by this power of two: 1 for scenes whose
@@ -290,6 +293,23 @@ struct Scratch {
   TriangleClip clip;
   std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
   std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
+  // The bit-mask stage (MaskBuilder): a subtree root's references and each axis's planes.
+  struct MaskPlane {
+    float pos;
+    std::uint64_t below;   // references that start (or lie) below the plane
+    std::uint64_t above;   // ... that end above it
+    std::uint64_t planar;  // ... that lie in it
+    std::uint64_t owners;  // ... with an event at it (only those planes are candidates)
+  };
+  struct MaskTask {
+    std::uint64_t mask;
+    std::uint32_t index;
+    int depth;
+    Aabb box;
+  };
+  std::vector<std::uint32_t> mask_refs;  // bit -> index into the block's triangle list
+  std::vector<MaskPlane> mask_planes[3];
+  std::vector<MaskTask> mask_stack;
 };
 
 std::uint32_t sort_key(float pos) {
@@ -365,6 +385,165 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
   return best;
 }
 
+// Popcount with the POPCNT instruction where the CPU has one: MaskBuilder::build is compiled
+// twice, once for it, and both copies build the same tree.
+[[gnu::always_inline]] inline int popcount64(std::uint64_t x) { return std::popcount(x); }
+
+// The small-node stage (Zhou, Hou, Wang, Guo 2008, "Real-time KD-tree construction on
+// graphics hardware", section 4.3): a subtree of at most 64 references, handed over by
+// BlockBuilder with its sorted event lists, numbers its references 0..63 and turns each
+// distinct event position into a plane with four masks (references below, above, in it, and
+// with an event at it). A node is then a mask: its SAH counts at a plane are popcounts of
+// the node's mask with the plane's, so a node costs a few instructions per plane and no
+// lists are split. This is the event sweep of BlockBuilder without clipping: the same
+// candidate planes (those where one of the node's references has an event), the same counts,
+// costs and ties, the same depth-first layout; only straddling triangles keep the bounds they
+// had at the subtree's root instead of being clipped to every node below it.
+class MaskBuilder {
+ public:
+  MaskBuilder(const BuildContext& ctx, Scratch& scratch, std::span<const std::uint32_t> tris, Block& out)
+      : ctx_(ctx), s_(scratch), tris_(tris), out_(out) {}
+
+  // Builds the subtree at out_.nodes[index] from a node's sorted event lists.
+  void run(std::size_t index, const Event* const ev[3], const std::size_t len[3], const Aabb& box, int depth) {
+    std::vector<std::uint32_t>& refs = s_.mask_refs;
+    refs.clear();
+    for (std::size_t i = 0; i < len[0]; ++i) {
+      if (ev[0][i].type() != kEnd) refs.push_back(ev[0][i].ref());
+    }
+    RTC_DCHECK(refs.size() <= 64, "bit-mask stage: more than 64 references");
+    // Bits in ascending reference order, so a leaf's set bits list its triangles ascending.
+    std::sort(refs.begin(), refs.end());
+    std::vector<std::uint32_t>& slot = s_.slot;
+    if (slot.size() < tris_.size()) slot.resize(tris_.size());
+    for (std::size_t b = 0; b < refs.size(); ++b) slot[refs[b]] = static_cast<std::uint32_t>(b);
+    const std::uint64_t all = refs.size() == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << refs.size()) - 1;
+    for (int axis = 0; axis < 3; ++axis) {
+      std::vector<Scratch::MaskPlane>& planes = s_.mask_planes[axis];
+      planes.clear();
+      std::uint64_t below = 0, gone = 0;  // started (or planar) before the plane; ended at or before it
+      for (std::size_t i = 0; i < len[axis];) {
+        const float pos = ev[axis][i].pos;
+        std::uint64_t start = 0, end = 0, planar = 0;
+        for (; i < len[axis] && ev[axis][i].pos == pos; ++i) {
+          const std::uint64_t bit = std::uint64_t{1} << slot[ev[axis][i].ref()];
+          switch (ev[axis][i].type()) {
+            case kStart:
+              start |= bit;
+              break;
+            case kEnd:
+              end |= bit;
+              break;
+            default:
+              planar |= bit;
+          }
+        }
+        gone |= end | planar;
+        planes.push_back(Scratch::MaskPlane{pos, below, all & ~gone, planar, start | end | planar});
+        below |= start | planar;
+      }
+    }
+    if (__builtin_cpu_supports("popcnt")) {
+      build_popcnt(index, all, box, depth);
+    } else {
+      build_portable(index, all, box, depth);
+    }
+  }
+
+ private:
+  [[gnu::target("popcnt")]] void build_popcnt(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
+    build(index, mask, box, depth);
+  }
+  void build_portable(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
+    build(index, mask, box, depth);
+  }
+
+  // Depth first with an explicit stack (left child popped first), so children are placed
+  // exactly where BlockBuilder::node's recursion would place them.
+  [[gnu::always_inline]] inline void build(std::size_t root, std::uint64_t root_mask, const Aabb& root_box,
+                                           int root_depth) {
+    const KdBuildOptions& options = ctx_.options;
+    std::vector<Scratch::MaskTask>& stack = s_.mask_stack;
+    stack.clear();
+    stack.push_back(Scratch::MaskTask{root_mask, static_cast<std::uint32_t>(root), root_depth, root_box});
+    while (!stack.empty()) {
+      const Scratch::MaskTask task = stack.back();
+      stack.pop_back();
+      const std::uint64_t mask = task.mask;
+      const Aabb& box = task.box;
+      const std::size_t count = static_cast<std::size_t>(popcount64(mask));
+      out_.max_depth = std::max(out_.max_depth, task.depth);
+      const float area = scaled_area(box, ctx_.sah_scale);
+      SplitChoice split;
+      const Scratch::MaskPlane* chosen = nullptr;
+      if (task.depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
+        const float inv_area = 1.0f / area;
+        for (int axis = 0; axis < 3; ++axis) {
+          const float lo = box.lo[axis], hi = box.hi[axis];
+          if (!(hi > lo)) continue;
+          const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
+          const std::vector<Scratch::MaskPlane>& planes = s_.mask_planes[axis];
+          // The earliest axis, then the lowest plane, wins a tie (as in best_on_axis).
+          auto it = std::upper_bound(planes.begin(), planes.end(), lo,
+                                     [](float v, const Scratch::MaskPlane& q) { return v < q.pos; });
+          for (; it != planes.end() && it->pos < hi; ++it) {
+            if ((it->owners & mask) == 0) continue;
+            const std::size_t n_left = static_cast<std::size_t>(popcount64(it->below & mask));
+            const std::size_t n_right = static_cast<std::size_t>(popcount64(it->above & mask));
+            const std::size_t n_planar = static_cast<std::size_t>(popcount64(it->planar & mask));
+            const float cost_left = sah.cost(it->pos, n_left + n_planar, n_right);
+            const float cost_right = n_planar > 0 ? sah.cost(it->pos, n_left, n_right + n_planar) : cost_left;
+            const bool planar_left = cost_left <= cost_right;
+            const float cost = planar_left ? cost_left : cost_right;
+            if (cost < split.cost) {
+              split = SplitChoice{axis, it->pos, planar_left, cost};
+              chosen = &*it;
+            }
+          }
+        }
+      }
+      if (chosen == nullptr || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
+        leaf(task.index, mask, count, area);
+        continue;
+      }
+      out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
+      // Below the plane, or in it on the side the split chose, go left; above it, or in it
+      // otherwise, right; straddlers both.
+      const std::uint64_t left = mask & (chosen->below | (split.planar_left ? chosen->planar : 0));
+      const std::uint64_t right = mask & (chosen->above | (split.planar_left ? 0 : chosen->planar));
+      const std::size_t first = out_.nodes.size();
+      out_.nodes.resize(first + 2);
+      KdNode inner;
+      inner.bits = (static_cast<std::uint32_t>(first) << 2) | static_cast<std::uint32_t>(split.axis);
+      inner.split = split.pos;
+      out_.nodes[task.index] = inner;
+      Aabb left_box = box, right_box = box;
+      left_box.hi[split.axis] = split.pos;
+      right_box.lo[split.axis] = split.pos;
+      const int depth = task.depth + 1;
+      stack.push_back(Scratch::MaskTask{right, static_cast<std::uint32_t>(first + 1), depth, right_box});
+      stack.push_back(Scratch::MaskTask{left, static_cast<std::uint32_t>(first), depth, left_box});
+    }
+  }
+
+  void leaf(std::size_t index, std::uint64_t mask, std::size_t count, float area) {
+    KdNode leaf;
+    leaf.bits = (static_cast<std::uint32_t>(out_.refs.size()) << 2) | 3u;
+    leaf.count = static_cast<std::uint32_t>(count);
+    out_.nodes[index] = leaf;
+    for (std::uint64_t m = mask; m != 0; m &= m - 1) out_.refs.push_back(tris_[s_.mask_refs[std::countr_zero(m)]]);
+    ++out_.leaves;
+    if (mask == 0) ++out_.empty_leaves;
+    out_.cost_area += static_cast<double>(ctx_.options.intersection_cost) * static_cast<double>(area) *
+                      static_cast<double>(count);
+  }
+
+  const BuildContext& ctx_;
+  Scratch& s_;
+  std::span<const std::uint32_t> tris_;
+  Block& out_;
+};
+
 // Sweeps one subtree exactly: three event lists sorted once at its root (each triangle clipped
 // to the block's box), then each node splits its sorted lists into its children's (Wald &
 // Havran 2006, section 4.3): one-sided references keep their events in order, straddling ones
@@ -413,6 +592,11 @@ class BlockBuilder {
 
   void node(std::size_t index, const std::size_t off[3], const std::size_t len[3], std::size_t count, const Aabb& box,
             int depth) {
+    if (count <= ctx_.mask_below) {
+      const Event* const ev[3] = {s_.arena.at(off[0]), s_.arena.at(off[1]), s_.arena.at(off[2])};
+      MaskBuilder(ctx_, s_, tris_, out_).run(index, ev, len, box, depth);
+      return;
+    }
     const KdBuildOptions& options = ctx_.options;
     out_.max_depth = std::max(out_.max_depth, depth);
     const float area = scaled_area(box, ctx_.sah_scale);
@@ -1117,8 +1301,9 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (max_depth <= 0) max_depth = static_cast<int>(8.0 + 1.3 * std::log2(static_cast<double>(count)));
   max_depth = std::clamp(max_depth, 1, 60);
 
-  BuildContext ctx{options, tri_box, positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
-                   options.clip};
+  const std::size_t mask_below = static_cast<std::size_t>(std::clamp(options.mask_below, 0, 64));
+  BuildContext ctx{options,      tri_box,  positions,  triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
+                   options.clip, mask_below};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;

@@ -236,6 +236,11 @@ int run(int argc, char** argv) {
   std::string kd_clip_text = "auto";
   rtc::add_kd_clip_option(app, kd_clip_text);
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
+  app.add_option("--kd-mask-below", kd_options.mask_below,
+                 "subtrees of at most this many references built with bit masks, not clipped below their root (0: "
+                 "the event sweep to the leaves)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
   int width = 0, height = 0;

@@ -2,11 +2,12 @@
 # Regenerates tests/bench/results/: rtc-bench --compare-embree on every view of the shared scene
 # pack, with 1 and 2 threads, as JSON lines plus a Markdown summary.
 # Usage: tests/bench/run_shared_scenes.sh [SCENES_DIR] [REPS]
+# RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 scenes=${1:-../shared/scenes}
 reps=${2:-5}
-bench=build/release/tests/bench/rtc-bench
+bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}
 [ -d "$scenes" ] || { echo "run_shared_scenes: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
 [ -x "$bench" ] || { cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench; }
 out=tests/bench/results

@@ -165,9 +165,12 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
   // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
   for (const Soup& s :
        {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000)}) {
-    for (bool clip : {true, false}) {
+    // The bit-mask stage from 64 references (the default), from 17, and not at all.
+    for (const auto& [clip, mask_below] :
+         {std::pair{true, 64}, std::pair{true, 17}, std::pair{true, 0}, std::pair{false, 64}, std::pair{false, 0}}) {
       KdBuildOptions o;
       o.clip = clip;
+      o.mask_below = mask_below;
       const KdTree tree = KdTree::build(s.positions, s.triangles, o);
       ASSERT_FALSE(tree.empty());
       EXPECT_GT(tree.stats().leaves, 1u);
@@ -177,7 +180,8 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
         return b;
       }();
       for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
-        ASSERT_TRUE(reachable(tree, s, 0, root, t)) << "triangle " << t << " unreachable, clip " << clip;
+        ASSERT_TRUE(reachable(tree, s, 0, root, t))
+            << "triangle " << t << " unreachable, clip " << clip << ", mask below " << mask_below;
       }
     }
   }
@@ -214,6 +218,55 @@ TEST(KdTree, BuildIsIndependentOfThreadCount) {
     ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits);
     ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count);
   }
+  }
+}
+
+// Coincident and axis-aligned triangles in piles: many events at one position, planar ones
+// among them (the ties the sweep settles by order of positions, axes and sides).
+Soup planar_piles(std::uint32_t seed, int count) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> cell(-4, 4), axis(0, 2);
+  Soup s;
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 c(0.25f * static_cast<float>(cell(rng)), 0.25f * static_cast<float>(cell(rng)),
+                      0.25f * static_cast<float>(cell(rng)));
+    const int k = axis(rng);  // the triangle lies in the plane x_k = c_k
+    glm::vec3 e1(0.0f), e2(0.0f);
+    e1[(k + 1) % 3] = 0.25f;
+    e2[(k + 2) % 3] = 0.25f;
+    const auto b = static_cast<unsigned>(s.positions.size());
+    s.positions.push_back(c);
+    s.positions.push_back(c + e1);
+    s.positions.push_back(c + e2);
+    s.triangles.emplace_back(b, b + 1, b + 2);
+  }
+  return s;
+}
+
+TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
+  // Without clipping the bit masks are the event sweep by other means: the same planes, counts,
+  // costs and ties, so node for node the same tree.
+  for (const Soup& s : {random_soup(7, 5000, 0.05f), sphere_and_grid(24), sliver_fan(13, 3000),
+                        planar_piles(17, 3000), random_soup(19, 200, 0.5f)}) {
+    for (int mask_below : {64, 33, 8}) {
+      KdBuildOptions sweep;
+      sweep.clip = false;
+      sweep.mask_below = 0;
+      KdBuildOptions masks = sweep;
+      masks.mask_below = mask_below;
+      const KdTree a = KdTree::build(s.positions, s.triangles, sweep);
+      const KdTree b = KdTree::build(s.positions, s.triangles, masks);
+      ASSERT_GT(a.nodes().size(), 1u);
+      ASSERT_EQ(a.nodes().size(), b.nodes().size()) << "mask below " << mask_below;
+      for (std::size_t i = 0; i < a.nodes().size(); ++i) {
+        ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits) << "node " << i << ", mask below " << mask_below;
+        ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count) << "node " << i << ", mask below " << mask_below;
+      }
+      ASSERT_EQ(a.prim_refs(), b.prim_refs());
+      EXPECT_EQ(a.stats().sah_cost, b.stats().sah_cost);
+      EXPECT_EQ(a.stats().max_depth, b.stats().max_depth);
+      EXPECT_EQ(a.stats().empty_leaves, b.stats().empty_leaves);
+    }
   }
 }
 
@@ -433,18 +486,21 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   for (bool watertight : {false, true}) {
   const KdTree base = KdTree::build(s.positions, s.triangles, with_test(watertight));
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
-  for (const auto& [kt, ki, leaf, clip] : {std::tuple{1.0f, 1.5f, 1, true}, std::tuple{4.0f, 1.0f, 1, true},
-                                          std::tuple{1.0f, 3.0f, 8, true}, std::tuple{2.0f, 1.5f, 1, false}}) {
+  for (const auto& [kt, ki, leaf, clip, mask] :
+       {std::tuple{1.0f, 1.5f, 1, true, 64}, std::tuple{4.0f, 1.0f, 1, true, 64}, std::tuple{1.0f, 3.0f, 8, true, 64},
+        std::tuple{2.0f, 1.5f, 1, false, 64}, std::tuple{3.0f, 1.5f, 1, true, 0}, std::tuple{2.0f, 1.5f, 1, true, 9}}) {
     KdBuildOptions o = with_test(watertight);
     o.traversal_cost = kt;
     o.intersection_cost = ki;
     o.leaf_size = leaf;
     o.clip = clip;
+    o.mask_below = mask;
     const KdTree other = KdTree::build(s.positions, s.triangles, o);
     trace_kernels().intersect(other, rays.data(), got.data(), rays.size(), true);
     for (std::size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
-          << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << " clip " << clip << ": "
+          << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << " clip " << clip
+          << " mask below " << mask << ": "
           << test::describe_ray(rays[i]);
     }
   }

@@ -1,15 +1,25 @@
 #!/usr/bin/env python3
-"""Turns tests/bench/run_kd_cost.sh's lines into tests/bench/results/kd_cost.md.
+"""Turns tests/bench/run_kd_ab.sh's lines into tests/bench/results/NAME.md.
 
-Per view: triangles; nodes, SAH and the median build time at each K_T; the median over rounds of
-the paired throughput ratio (second K_T over first, same round) for primary and shadow rays.
+Usage: summarize_kd_ab.py NAME.txt OPTION NAME
+Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
+median over rounds of the paired throughput ratio (second value over first, same round) for
+primary and shadow rays.
 """
 import collections
 import statistics
 import sys
 
 
-def main(path):
+# What each option is, for the title; K_T's SAH costs are not comparable across its values.
+OPTIONS = {
+    "--kd-traversal-cost": "SAH traversal cost K_T",
+    "--kd-mask-below": "bit-mask stage below this many references (--kd-mask-below)",
+}
+
+
+def main(path, option, name):
+    what = OPTIONS.get(option, option)
     runs = collections.defaultdict(dict)  # (scene, mode, round) -> {kt: (mrays, build, nodes, sah, tris)}
     for line in open(path):
         p = line.split()
@@ -19,16 +29,17 @@ def main(path):
         runs[(scene, mode, rnd)][kt] = (float(p[4]), float(p[5]), int(p[6]), float(p[7]), int(p[8]))
     kts = sorted({kt for v in runs.values() for kt in v}, key=float)
     if len(kts) != 2:
-        sys.exit(f"summarize_kd_cost: expected two K_T values, found {kts}")
+        sys.exit(f"summarize_kd_ab: expected two values of {option}, found {kts}")
     a, b = kts
     scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
-    print(f"# SAH traversal cost K_T = {a} against K_T = {b}\n")
-    print("`tests/bench/run_kd_cost.sh` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
+    print(f"# {what}: {a} against {b}\n")
+    sah_note = ("The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. "
+                if option == "--kd-traversal-cost" else "")
+    print(f"`tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
           "process CPU time, `--reps 5 --build-reps 3`, the two values alternating view by view in each round. "
-          f"Ratios are K_T = {b} over K_T = {a}, paired within a round; the median over the rounds comes first, the "
+          f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
           "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "
-          "kd-tree). The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. On this "
-          "VM one binary's runs vary by 10-15%: a view whose tree did not change (equal node counts) shows that noise.\n")
+          "kd-tree). " + sah_note + "On this VM one binary's runs vary by 10-15%: a view whose tree did not change (equal node counts) shows that noise.\n")
     print(f"| view | tris | nodes {a} → {b} | SAH {a} → {b} | build ms {a} → {b} | primary {b}/{a} | shadow {b}/{a} |")
     print("|---|---:|---|---|---|---|---|")
     medians = {"primary": [], "shadow": []}
@@ -58,4 +69,6 @@ def main(path):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    if len(sys.argv) != 4:
+        sys.exit("usage: summarize_kd_ab.py NAME.txt OPTION NAME")
+    main(*sys.argv[1:])
