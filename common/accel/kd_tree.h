@@ -82,7 +82,11 @@ struct KdBuildOptions {
   /// (16-wide primary rays 1.02x, shadow rays 1.05x, medians) with 40% fewer nodes and builds
   /// 0.67-0.91x the time (tests/bench/results/kd_cost.md); 2 had been measured faster than 1.
   float traversal_cost = 3.0f;
-  float intersection_cost = 1.5f;  ///< K_I, cost of one triangle test
+  /// K_I, cost of one triangle test. 1 (K_T/K_I = 3): against 1.5, over the 16 shared views
+  /// 16-wide primary rays 1.03x and shadow rays 1.01x (medians; the big scenes where rtc trails
+  /// Embree 1.09-1.16x), 25-65% fewer nodes, builds 0.91x (tests/bench/results/kd_ki.md); 0.75
+  /// measured no better (kd_ki_075.md).
+  float intersection_cost = 1.0f;
   float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
   int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves

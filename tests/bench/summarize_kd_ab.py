@@ -15,6 +15,7 @@ import sys
 OPTIONS = {
     "--kd-traversal-cost": "SAH traversal cost K_T",
     "--kd-mask-below": "bit-mask stage below this many references (--kd-mask-below)",
+    "--kd-intersection-cost": "SAH intersection cost K_I",
 }
 
 
@@ -34,7 +35,9 @@ def main(path, option, name):
     scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
     print(f"# {what}: {a} against {b}\n")
     sah_note = ("The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. "
-                if option == "--kd-traversal-cost" else "")
+                if option == "--kd-traversal-cost" else
+                "The SAH cost is computed with the build's own K_I, so it is not comparable across K_I. "
+                if option == "--kd-intersection-cost" else "")
     print(f"`tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
           "process CPU time, `--reps 5 --build-reps 3`, the two values alternating view by view in each round. "
           f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
