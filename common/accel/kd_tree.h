@@ -78,13 +78,14 @@ static_assert(sizeof(TriRecord) == 48 && alignof(TriRecord) == 16);
 
 /// Build parameters: the SAH cost model (Wald & Havran 2006) and termination limits.
 struct KdBuildOptions {
-  /// K_T, cost of one traversal step. 3: over the 16 shared views the same trace speed as 2
-  /// (16-wide primary rays 1.02x, shadow rays 1.05x, medians) with 40% fewer nodes and builds
-  /// 0.67-0.91x the time (tests/bench/results/kd_cost.md); 2 had been measured faster than 1.
+  /// K_T, cost of one traversal step. 3 (measured at K_I = 1.5): over the 16 shared views the
+  /// same trace speed as 2 (16-wide primary rays 1.02x, shadow rays 1.05x, medians) with 40%
+  /// fewer nodes and builds 0.67-0.91x the time (tests/bench/results/kd_cost.md); 2 had been
+  /// measured faster than 1.
   float traversal_cost = 3.0f;
   /// K_I, cost of one triangle test. 1 (K_T/K_I = 3): against 1.5, over the 16 shared views
   /// 16-wide primary rays 1.03x and shadow rays 1.01x (medians; the big scenes where rtc trails
-  /// Embree 1.09-1.16x), 25-65% fewer nodes, builds 0.91x (tests/bench/results/kd_ki.md); 0.75
+  /// Embree 1.09-1.16x), 24-64% fewer nodes, builds 0.91x (tests/bench/results/kd_ki.md); 0.75
   /// measured no better (kd_ki_075.md).
   float intersection_cost = 1.0f;
   float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space

@@ -297,7 +297,7 @@ struct Scratch {
   struct MaskPlane {
     float pos;
     std::uint64_t below;   // references that start (or lie) below the plane
-    std::uint64_t above;   // ... that end above it
+    std::uint64_t above;   // ... that end (or lie) above it
     std::uint64_t planar;  // ... that lie in it
     std::uint64_t owners;  // ... with an event at it (only those planes are candidates)
   };
@@ -579,20 +579,24 @@ class BlockBuilder {
  private:
   // Writes the events of a reference with bounds `b` (inside the node's box) along `axis`;
   // returns how many (1 or 2).
+  // Positions are written with -0 as +0 (x + 0 is +0 for either zero): both compare equal, so
+  // which one a group of events at zero started with would otherwise decide the sign of a
+  // split plane there, and that first event depends on which references a node holds.
   static std::size_t add_events(Event* ev, const Aabb& b, int axis, std::uint32_t ref) {
     const std::uint32_t code = ref << 2;
-    if (b.lo[axis] == b.hi[axis]) {
-      ev[0] = Event{b.lo[axis], code | kPlanar};
+    const float lo = b.lo[axis] + 0.0f, hi = b.hi[axis] + 0.0f;
+    if (lo == hi) {
+      ev[0] = Event{lo, code | kPlanar};
       return 1;
     }
-    ev[0] = Event{b.lo[axis], code | kStart};
-    ev[1] = Event{b.hi[axis], code | kEnd};
+    ev[0] = Event{lo, code | kStart};
+    ev[1] = Event{hi, code | kEnd};
     return 2;
   }
 
   void node(std::size_t index, const std::size_t off[3], const std::size_t len[3], std::size_t count, const Aabb& box,
             int depth) {
-    if (count <= ctx_.mask_below) {
+    if (ctx_.mask_below > 0 && count <= ctx_.mask_below) {
       const Event* const ev[3] = {s_.arena.at(off[0]), s_.arena.at(off[1]), s_.arena.at(off[2])};
       MaskBuilder(ctx_, s_, tris_, out_).run(index, ev, len, box, depth);
       return;

@@ -362,6 +362,7 @@ int run(int argc, char** argv) {
                          {"kd_clip", kd_options.clip},
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_intersection_cost", kd_options.intersection_cost},
+                         {"kd_mask_below", kd_options.mask_below},
                          {"reps", reps}};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;

@@ -17,8 +17,13 @@ name=$3
 scenes=${4:-../shared/scenes}
 rounds=${5:-3}
 bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}
+[ "$(echo $values | wc -w)" -eq 2 ] || { echo "run_kd_ab: VALUES must be two values, got \"$values\"" >&2; exit 2; }
 [ -d "$scenes" ] || { echo "run_kd_ab: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
-[ -x "$bench" ] || { cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench; }
+if [ -n "${RTC_BENCH:-}" ]; then
+  [ -x "$bench" ] || { echo "run_kd_ab: RTC_BENCH=$bench is not an executable" >&2; exit 1; }
+elif [ ! -x "$bench" ]; then
+  cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench
+fi
 out=tests/bench/results
 mkdir -p "$out"
 : > "$out/$name.txt.tmp"

@@ -4,7 +4,7 @@
 Usage: summarize_kd_ab.py NAME.txt OPTION NAME
 Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
 median over rounds of the paired throughput ratio (second value over first, same round) for
-primary and shadow rays.
+primary and shadow rays. The values keep the order run_kd_ab.sh ran them in (first seen first).
 """
 import collections
 import statistics
@@ -21,17 +21,19 @@ OPTIONS = {
 
 def main(path, option, name):
     what = OPTIONS.get(option, option)
-    runs = collections.defaultdict(dict)  # (scene, mode, round) -> {kt: (mrays, build, nodes, sah, tris)}
+    runs = collections.defaultdict(dict)  # (scene, mode, round) -> {value: (mrays, build, nodes, sah, tris)}
+    values = []  # in the order the run gave them
     for line in open(path):
         p = line.split()
         if len(p) != 9:
             continue
-        scene, kt, rnd, mode = p[0], p[1], p[2], p[3]
-        runs[(scene, mode, rnd)][kt] = (float(p[4]), float(p[5]), int(p[6]), float(p[7]), int(p[8]))
-    kts = sorted({kt for v in runs.values() for kt in v}, key=float)
-    if len(kts) != 2:
-        sys.exit(f"summarize_kd_ab: expected two values of {option}, found {kts}")
-    a, b = kts
+        scene, value, rnd, mode = p[0], p[1], p[2], p[3]
+        if value not in values:
+            values.append(value)
+        runs[(scene, mode, rnd)][value] = (float(p[4]), float(p[5]), int(p[6]), float(p[7]), int(p[8]))
+    if len(values) != 2:
+        sys.exit(f"summarize_kd_ab: expected two values of {option} in {path}, found {values}")
+    a, b = values
     scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
     print(f"# {what}: {a} against {b}\n")
     sah_note = ("The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. "
@@ -65,6 +67,8 @@ def main(path, option, name):
         print(f"| {s} | {first[a][4]:,} | {first[a][2]:,} → {first[b][2]:,} | {first[a][3]} → {first[b][3]} | "
               f"{build_a:.0f} → {build_b:.0f}{build_ratio} | {text['primary']} | {text['shadow']} |")
     print()
+    if not builds:
+        builds = [float("nan")]
     print(f"Over the views: primary {b}/{a} median {statistics.median(medians['primary']):.2f} "
           f"(views {min(medians['primary']):.2f}-{max(medians['primary']):.2f}), shadow median "
           f"{statistics.median(medians['shadow']):.2f} ({min(medians['shadow']):.2f}-{max(medians['shadow']):.2f}); "

@@ -45,7 +45,9 @@ AUTH_CONTEXT = b"rtc-auth-v1"
 SMALL = ["--width", "96", "--height", "72"]
 MEDIUM = ["--width", "160", "--height", "120"]
 LARGE = ["--width", "320", "--height", "240"]
-# For cases whose run must last: ~0.13 s of tracing a frame on one thread.
+# For cases whose run must last: ~0.04 s of tracing a frame on one thread on the 2026-11-22
+# machine (0.13 s when these cases were written); a case that needs the run to outlast
+# something sizes its frame count for that (case_worker_frozen).
 SLOW = [*LARGE, "--spp", "2"]
 # Fault cases time their blows against the run (kill a worker while it holds tiles, interrupt
 # the master mid-run): every frame traced whole, since temporal coherence (on by default: the
@@ -423,7 +425,7 @@ def worker_labels(master):
 # ---- cases --------------------------------------------------------------------------------
 
 def case_workers(c, n):
-    # Frames long enough (~0.13 s each on one thread) that every worker is ready before the
+    # Frames long enough (~0.04 s each on one thread, see SLOW) that every worker is ready before the
     # first one has traced them all (a worker's first frame builds the static kd-tree first).
     # Every tile of every frame handed out (temporal coherence would trace only a few after the
     # first frame; it has its own cases).
@@ -626,7 +628,7 @@ def read_challenge(sock, timeout=10):
 def case_bad_peers(c):
     token = c.token_file("token", "correct horse battery staple")
     wrong_token = c.token_file("wrong-token", "not the token")
-    # 24 frames, ~3 s with one worker: the master must outlive every bad peer (a master that
+    # 24 frames, ~1 s with one worker: the master must outlive every bad peer (a master that
     # finishes just after rejecting the intruder may close before the intruder reads why).
     scene = [*SLOW, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-23", "png")
@@ -774,7 +776,7 @@ def interrupted_run(c, tag, scene, twice):
 
 
 def case_sigint_finishes_cleanly(c):
-    # Frames slow enough (~0.13 s a frame on one thread) that the second SIGINT lands while the
+    # Frames slow enough (~0.04 s a frame on one thread, see SLOW) that the second SIGINT lands while the
     # frames in flight are still being drained: once the drain is over the master is saying
     # goodbye, and a signal then ends the process the usual way (by design).
     scene = [*SLOW, "--tile", "16", *WHOLE]
@@ -946,7 +948,7 @@ def case_connection_limits(c):
     """--max-unauthenticated-per-host 2 --max-connections-per-host 3: a third handshake from the
     same address, or a fourth connection, is closed before the master sends anything, and logged
     with the peer; the connections within the limits, and the frames, are unaffected."""
-    # ~3 s of frames: the master must still be up for the connections tried after the worker joined.
+    # ~1 s of frames: the master must still be up for the connections tried after the worker joined.
     scene = [*SLOW, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")

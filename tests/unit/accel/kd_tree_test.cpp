@@ -222,14 +222,18 @@ TEST(KdTree, BuildIsIndependentOfThreadCount) {
 }
 
 // Coincident and axis-aligned triangles in piles: many events at one position, planar ones
-// among them (the ties the sweep settles by order of positions, axes and sides).
+// among them (the ties the sweep settles by order of positions, axes and sides), with -0 for
+// every other triangle's zero coordinates (+0 and -0 in one group of equal positions).
 Soup planar_piles(std::uint32_t seed, int count) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> cell(-4, 4), axis(0, 2);
   Soup s;
   for (int i = 0; i < count; ++i) {
-    const glm::vec3 c(0.25f * static_cast<float>(cell(rng)), 0.25f * static_cast<float>(cell(rng)),
-                      0.25f * static_cast<float>(cell(rng)));
+    glm::vec3 c(0.25f * static_cast<float>(cell(rng)), 0.25f * static_cast<float>(cell(rng)),
+                0.25f * static_cast<float>(cell(rng)));
+    for (int j = 0; j < 3; ++j) {
+      if (c[j] == 0.0f && (i & 1)) c[j] = -0.0f;
+    }
     const int k = axis(rng);  // the triangle lies in the plane x_k = c_k
     glm::vec3 e1(0.0f), e2(0.0f);
     e1[(k + 1) % 3] = 0.25f;
@@ -243,15 +247,42 @@ Soup planar_piles(std::uint32_t seed, int count) {
   return s;
 }
 
+// Eight cells along y, each with a triangle left of x = 0, one right of it and one in the plane
+// x = 0 between them: +0 in the first four cells, -0 in the others. At K_T = 0.1 the cells split
+// first, then each cell at x = 0, where the upper cells' nodes see only -0 (the whole soup's
+// first event at zero is +0): without events written as +0 the planes there came out -0 from
+// the sweep and +0 from the masks.
+Soup signed_zero_cells() {
+  Soup s;
+  for (int j = 0; j < 8; ++j) {
+    const float y = 10.0f * static_cast<float>(j);
+    const float zero = j < 4 ? 0.0f : -0.0f;
+    for (const float x : {-1.0f, zero, 1.0f}) {
+      const auto b = static_cast<unsigned>(s.positions.size());
+      const float w = x == 0.0f ? 0.0f : 0.2f;  // the middle one lies in x = 0
+      s.positions.emplace_back(x, y, 0.0f);
+      s.positions.emplace_back(x + w, y + 1.0f, 0.0f);
+      s.positions.emplace_back(x, y, 1.0f);
+      s.triangles.emplace_back(b, b + 1, b + 2);
+    }
+  }
+  return s;
+}
+
 TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   // Without clipping the bit masks are the event sweep by other means: the same planes, counts,
   // costs and ties, so node for node the same tree.
-  for (const Soup& s : {random_soup(7, 5000, 0.05f), sphere_and_grid(24), sliver_fan(13, 3000),
-                        planar_piles(17, 3000), random_soup(19, 200, 0.5f)}) {
+  // Soup 19 has 64 triangles, so its root is one full 64-bit mask.
+  for (const auto& [s, traversal_cost] :
+       {std::pair{random_soup(7, 5000, 0.05f), 3.0f}, std::pair{sphere_and_grid(24), 3.0f},
+        std::pair{sliver_fan(13, 3000), 3.0f}, std::pair{planar_piles(17, 3000), 3.0f},
+        std::pair{random_soup(19, 64, 0.5f), 3.0f}, std::pair{random_soup(29, 300, 0.5f), 1.0f},
+        std::pair{signed_zero_cells(), 0.1f}}) {
     for (int mask_below : {64, 33, 8}) {
       KdBuildOptions sweep;
       sweep.clip = false;
       sweep.mask_below = 0;
+      sweep.traversal_cost = traversal_cost;
       KdBuildOptions masks = sweep;
       masks.mask_below = mask_below;
       const KdTree a = KdTree::build(s.positions, s.triangles, sweep);
@@ -268,6 +299,14 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
       EXPECT_EQ(a.stats().empty_leaves, b.stats().empty_leaves);
     }
   }
+  // With clipping the stage is seen to run: the slivers' straddlers keep their root bounds
+  // below 64 references, so that tree differs from the one clipped to the leaves.
+  const Soup fan = sliver_fan(13, 3000);
+  KdBuildOptions sweep;
+  sweep.mask_below = 0;
+  const KdTree a = KdTree::build(fan.positions, fan.triangles, sweep);
+  const KdTree b = KdTree::build(fan.positions, fan.triangles, KdBuildOptions{});
+  EXPECT_NE(a.stats().sah_cost, b.stats().sah_cost);
 }
 
 KdBuildOptions with_test(bool watertight) {
