@@ -266,8 +266,7 @@ template <int N, bool kOcclusion, template <int> class Test>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
                        HitPacket<N>& hit, vbool<N>& occluded) {
   const KdNode* nodes = tree.nodes().data();
-  const std::uint32_t* refs = tree.prim_refs().data();
-  const TriRecord* records = tree.records().data();
+  const TriRecord* records = tree.leaf_records().data();
   const Aabb& box = tree.bounds();
 
   int lead = 0;
@@ -363,9 +362,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       continue;
     }
 
-    const std::uint32_t* leaf_refs = refs + node.prim_offset();
+    const TriRecord* leaf = records + node.prim_offset();
     for (std::uint32_t i = 0; i < node.count; ++i) {
-      test.template intersect<kOcclusion>(records[leaf_refs[i]], ray, active, hit, occluded);
+      test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
       if constexpr (kOcclusion) {
         // A shadow ray stops at its first hit: occluded lanes test nothing more.
         active &= !occluded;

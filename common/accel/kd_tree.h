@@ -160,6 +160,9 @@ class KdTree {
   /// a leaf's triangles sit together in memory; unreferenced (degenerate) ones come last.
   /// `wald` or `watertight` as watertight() says; `wald.k` and `wald.id` are valid in both.
   [[nodiscard]] const std::vector<TriRecord>& records() const { return records_; }
+  /// One record per leaf reference, in leaf order: leaf_records()[i] is
+  /// records()[prim_refs()[i]], so a leaf's triangles are read in sequence with no indirection.
+  [[nodiscard]] const std::vector<TriRecord>& leaf_records() const { return leaf_records_; }
   /// The record of triangles[index] as given to build(); `index` is the triangle's id when the
   /// tree was built without ids.
   [[nodiscard]] const TriRecord& record_of(std::uint32_t index) const { return records_[accel_index_[index]]; }
@@ -176,6 +179,7 @@ class KdTree {
   std::vector<KdNode> nodes_;
   std::vector<std::uint32_t> prim_refs_;
   std::vector<TriRecord> records_;
+  std::vector<TriRecord> leaf_records_;
   std::vector<std::uint32_t> accel_index_;  ///< triangle id -> index into records_
   Aabb bounds_;
   KdBuildStats stats_;

@@ -1325,6 +1325,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   order_records_by_leaves(tree.nodes_, tree.prim_refs_, tree.records_, tree.accel_index_);
+  tree.leaf_records_.resize(tree.prim_refs_.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) tree.leaf_records_[i] = tree.records_[tree.prim_refs_[i]];
+  });
 
   tree.stats_.nodes = tree.nodes_.size();
   tree.stats_.prim_refs = tree.prim_refs_.size();

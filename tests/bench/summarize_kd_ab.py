@@ -16,6 +16,7 @@ OPTIONS = {
     "--kd-traversal-cost": "SAH traversal cost K_T",
     "--kd-mask-below": "bit-mask stage below this many references (--kd-mask-below)",
     "--kd-intersection-cost": "SAH intersection cost K_I",
+    "binaries": "two rtc-bench binaries (tests/bench/run_bin_ab.sh), A and B",
 }
 
 
@@ -40,7 +41,9 @@ def main(path, option, name):
                 if option == "--kd-traversal-cost" else
                 "The SAH cost is computed with the build's own K_I, so it is not comparable across K_I. "
                 if option == "--kd-intersection-cost" else "")
-    print(f"`tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
+    command = (f"tests/bench/run_bin_ab.sh A B {name}" if option == "binaries" else
+               f"tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}")
+    print(f"`{command}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
           "process CPU time, `--reps 5 --build-reps 3`, the two values alternating view by view in each round. "
           f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
           "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "

@@ -1463,7 +1463,11 @@ def case_launch_local(c):
     rc, log = _run_launcher(c, "launch-int", [*MEDIUM, "--frames", "0-23", "--out", os.path.join(out2, "m_####.png")], True)
     if rc != 0:
         fail(f"launch-local.sh exited {rc} after Ctrl-C, expected 0:\n{log}")
-    if "taking no new frames" not in log:
+    # With frames in flight the master finishes them ("taking no new frames"); a signal that
+    # lands while no frame is open stops it at once ("stopped by SIGINT", master_server.cpp
+    # on_signal). With temporal coherence a frame here takes a few ms, so either happens (the
+    # second in 1 of 5 runs on 2026-11-22).
+    if not re.search(r"SIGINT: taking no new frames|shutting down: stopped by SIGINT", log):
         fail(f"the master did not report stopping on SIGINT:\n{log}")
     written = sorted(f for f in os.listdir(out2) if f.endswith(".png"))
     if not 1 <= len(written) < 24:

@@ -200,6 +200,12 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   }
   EXPECT_EQ(tree.stats().nodes, tree.nodes().size());
   EXPECT_GT(tree.stats().sah_cost, 0.0);
+  // The traversal reads a leaf's records in sequence from leaf_records().
+  ASSERT_EQ(tree.leaf_records().size(), tree.prim_refs().size());
+  for (std::size_t i = 0; i < tree.prim_refs().size(); ++i) {
+    ASSERT_EQ(std::memcmp(&tree.leaf_records()[i], &tree.records()[tree.prim_refs()[i]], sizeof(TriRecord)), 0)
+        << "reference " << i;
+  }
 }
 
 TEST(KdTree, BuildIsIndependentOfThreadCount) {
