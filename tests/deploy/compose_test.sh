@@ -271,7 +271,9 @@ wait_until() {  # wait_until SECONDS WHAT COMMAND...
   local deadline=$((SECONDS + limit))
   until "$@"; do
     [ "$SECONDS" -lt "$deadline" ] || { master_log | tail -n 30 >&2; fail "timed out after $limit s waiting for $what"; }
-    [ "$(docker inspect -f '{{.State.Running}}' "$master_id")" = true ] ||
+    # A master that exited may have logged what we wait for just before (a whole run of short
+    # frames can end between two checks): look once more before calling it a failure.
+    [ "$(docker inspect -f '{{.State.Running}}' "$master_id")" = true ] || "$@" ||
       { master_log | tail -n 30 >&2; fail "the master container exited while waiting for $what"; }
     sleep 0.1
   done
