@@ -250,6 +250,20 @@ struct Block {
   std::uint64_t empty_leaves = 0;
   int max_depth = 0;
   double cost_area = 0;  // SAH cost times the area of the tree's root box
+
+  // Makes nodes[index] a leaf over triangles tris[local[i]] (`local` ascending, so the leaf's
+  // triangles are too), and adds its `count` references' share of the SAH cost.
+  void add_leaf(std::size_t index, std::span<const std::uint32_t> tris, std::span<const std::uint32_t> local,
+                std::size_t count, float area, float intersection_cost) {
+    KdNode leaf;
+    leaf.bits = (static_cast<std::uint32_t>(refs.size()) << 2) | 3u;
+    leaf.count = static_cast<std::uint32_t>(local.size());
+    nodes[index] = leaf;
+    for (std::uint32_t i : local) refs.push_back(tris[i]);
+    ++leaves;
+    if (local.empty()) ++empty_leaves;
+    cost_area += static_cast<double>(intersection_cost) * static_cast<double>(area) * static_cast<double>(count);
+  }
 };
 
 // A growable stack of events that leaves its contents uninitialised (a vector would zero
@@ -527,15 +541,10 @@ class MaskBuilder {
   }
 
   void leaf(std::size_t index, std::uint64_t mask, std::size_t count, float area) {
-    KdNode leaf;
-    leaf.bits = (static_cast<std::uint32_t>(out_.refs.size()) << 2) | 3u;
-    leaf.count = static_cast<std::uint32_t>(count);
-    out_.nodes[index] = leaf;
-    for (std::uint64_t m = mask; m != 0; m &= m - 1) out_.refs.push_back(tris_[s_.mask_refs[std::countr_zero(m)]]);
-    ++out_.leaves;
-    if (mask == 0) ++out_.empty_leaves;
-    out_.cost_area += static_cast<double>(ctx_.options.intersection_cost) * static_cast<double>(area) *
-                      static_cast<double>(count);
+    std::vector<std::uint32_t>& local = s_.leaf;
+    local.clear();
+    for (std::uint64_t m = mask; m != 0; m &= m - 1) local.push_back(s_.mask_refs[std::countr_zero(m)]);
+    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
   }
 
   const BuildContext& ctx_;
@@ -778,15 +787,7 @@ class BlockBuilder {
     }
     // The block's triangle list is ascending, so sorted local indices give sorted triangles.
     std::sort(local.begin(), local.end());
-    KdNode leaf;
-    leaf.bits = (static_cast<std::uint32_t>(out_.refs.size()) << 2) | 3u;
-    leaf.count = static_cast<std::uint32_t>(local.size());
-    out_.nodes[index] = leaf;
-    for (std::uint32_t i : local) out_.refs.push_back(tris_[i]);
-    ++out_.leaves;
-    if (local.empty()) ++out_.empty_leaves;
-    out_.cost_area += static_cast<double>(ctx_.options.intersection_cost) * static_cast<double>(area) *
-                      static_cast<double>(count);
+    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
   }
 
   const BuildContext& ctx_;

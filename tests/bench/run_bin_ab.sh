@@ -19,26 +19,4 @@ for b in "$bin_a" "$bin_b"; do
   [ -x "$b" ] || { echo "run_bin_ab: $b is not an executable" >&2; exit 1; }
 done
 [ -d "$scenes" ] || { echo "run_bin_ab: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
-out=tests/bench/results
-mkdir -p "$out"
-: > "$out/$name.txt.tmp"
-views=$(find "$scenes" -name 'view*.json' | sort)
-for r in $(seq "$rounds"); do
-  for view in $views; do
-    for v in A B; do
-      bin=$bin_a
-      [ "$v" = B ] && bin=$bin_b
-      echo "$bin $view (binary $v, round $r of $rounds)" >&2
-      "$bin" "$view" --threads 1 --reps 5 --build-reps 3 --mode primary --mode shadow --isa avx512 --cpu-time --json |
-        python3 -c "
-import json, sys
-for line in sys.stdin:
-    j = json.loads(line)
-    print(j['scene'], '$v', '$r', j['mode'], round(j['mrays_per_s'], 3), round(j['build_ms'], 1), j['kd_nodes'],
-          round(j['kd_sah_cost'], 2), j['triangles'])" >> "$out/$name.txt.tmp"
-    done
-  done
-done
-mv "$out/$name.txt.tmp" "$out/$name.txt"
-python3 tests/bench/summarize_kd_ab.py "$out/$name.txt" binaries "$name" > "$out/$name.md"
-echo "wrote $out/$name.txt and $out/$name.md" >&2
+exec tests/bench/ab_loop.sh "$name" "$scenes" "$rounds" binaries A "$bin_a" "" B "$bin_b" ""

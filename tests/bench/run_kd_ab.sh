@@ -3,8 +3,8 @@
 # the shared scene pack, one thread, 16-wide packets (avx512), process CPU time, the values
 # alternating view by view, ROUNDS times. Writes tests/bench/results/NAME.txt (one line per view,
 # value, round and mode: scene value round mode Mrays/s build_ms nodes SAH triangles) and NAME.md
-# (tests/bench/summarize_kd_ab.py: per view the median ratio of the second value's throughput to the
-# first's, paired round by round, and the build times).
+# (the loop is tests/bench/ab_loop.sh; summarize_kd_ab.py: per view the median ratio of the second
+# value's throughput to the first's, paired round by round, and the build times).
 # Usage: tests/bench/run_kd_ab.sh OPTION "VALUES" NAME [SCENES_DIR] [ROUNDS]
 #   e.g. tests/bench/run_kd_ab.sh --kd-mask-below "0 64" kd_mask
 # RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench)
@@ -24,25 +24,5 @@ if [ -n "${RTC_BENCH:-}" ]; then
 elif [ ! -x "$bench" ]; then
   cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench
 fi
-out=tests/bench/results
-mkdir -p "$out"
-: > "$out/$name.txt.tmp"
-views=$(find "$scenes" -name 'view*.json' | sort)
-for r in $(seq "$rounds"); do
-  for view in $views; do
-    for v in $values; do
-      echo "rtc-bench $view $option $v (round $r of $rounds)" >&2
-      "$bench" "$view" --threads 1 --reps 5 --build-reps 3 --mode primary --mode shadow --isa avx512 --cpu-time \
-        --json "$option" "$v" |
-        python3 -c "
-import json, sys
-for line in sys.stdin:
-    j = json.loads(line)
-    print(j['scene'], '$v', '$r', j['mode'], round(j['mrays_per_s'], 3), round(j['build_ms'], 1), j['kd_nodes'],
-          round(j['kd_sah_cost'], 2), j['triangles'])" >> "$out/$name.txt.tmp"
-    done
-  done
-done
-mv "$out/$name.txt.tmp" "$out/$name.txt"
-python3 tests/bench/summarize_kd_ab.py "$out/$name.txt" "$option" "$name" > "$out/$name.md"
-echo "wrote $out/$name.txt and $out/$name.md" >&2
+set -- $values
+exec tests/bench/ab_loop.sh "$name" "$scenes" "$rounds" "$option" "$1" "$bench" "$option $1" "$2" "$bench" "$option $2"
