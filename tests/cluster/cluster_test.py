@@ -776,10 +776,11 @@ def interrupted_run(c, tag, scene, twice):
 
 
 def case_sigint_finishes_cleanly(c):
-    # Frames slow enough (~0.04 s a frame on one thread, see SLOW) that the second SIGINT lands while the
-    # frames in flight are still being drained: once the drain is over the master is saying
-    # goodbye, and a signal then ends the process the usual way (by design).
-    scene = [*SLOW, "--tile", "16", *WHOLE]
+    # Frames slow enough that the second SIGINT lands while the frames in flight are still being
+    # drained: once the drain is over the master is saying goodbye, and a signal then ends the
+    # process the usual way (by design). SLOW's ~0.05 s frames drained 2 frames in ~0.07 s, before
+    # the second SIGINT, in a CI run on 2026-11-22; 8 samples a pixel make a frame ~4x as long.
+    scene = [*LARGE, "--spp", "8", "--tile", "16", *WHOLE]
     drained, drained_out = interrupted_run(c, "once", scene, twice=False)
     abandoned, abandoned_out = interrupted_run(c, "twice", scene, twice=True)
     ref = c.reference("ref", scene, f"0-{max(drained + abandoned)}", "png")
