@@ -522,6 +522,45 @@ TEST(KdTraversal, EveryIsaGivesTheSameBits) {
   EXPECT_GE(tried, 4);  // SSE4.2 at least, twice per test
 }
 
+// The stream kernels load a packet's rays with vector loads and shuffles: streams whose length
+// is not a multiple of the packet width (the last packet repeats its last ray in masked lanes)
+// and that start anywhere in memory must give each ray the bits it gets alone.
+TEST(KdTraversal, StreamsOfAnyLengthAndOffsetGiveTheSameBits) {
+  const Soup s = sphere_and_grid(16);
+  const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(false));
+  const std::vector<RayQuery> rays = random_rays(31, 200, true);
+  int tried = 0;
+  for (const Isa isa : compiled_isas()) {
+    if (!cpu_supports(isa)) continue;
+    ++tried;
+    for (const std::size_t offset : {0u, 1u, 3u}) {
+      for (const std::size_t count : {1u, 2u, 3u, 5u, 7u, 8u, 9u, 13u, 15u, 16u, 17u, 31u, 33u, 47u}) {
+        SCOPED_TRACE(std::string(isa_name(isa)) + ", offset " + std::to_string(offset) + ", count " +
+                     std::to_string(count));
+        const RayQuery* first = rays.data() + offset;
+        std::vector<RayHit> got(count);
+        std::vector<std::uint8_t> occ(count);
+        trace_kernels(isa).intersect(tree, first, got.data(), count, true);
+        trace_kernels(isa).occluded(tree, first, occ.data(), count, true);
+        int hits = 0;
+        for (std::size_t i = 0; i < count; ++i) {
+          RayHit alone;
+          std::uint8_t occ_alone = 2;
+          trace_kernels(Isa::Sse42).intersect(tree, first + i, &alone, 1, false);
+          trace_kernels(Isa::Sse42).occluded(tree, first + i, &occ_alone, 1, false);
+          ASSERT_EQ(std::memcmp(&alone, &got[i], sizeof(RayHit)), 0) << test::describe_ray(first[i]);
+          ASSERT_EQ(occ_alone, occ[i]) << test::describe_ray(first[i]);
+          hits += alone.prim != kNoHit ? 1 : 0;
+        }
+        if (count >= 16) {
+          EXPECT_GT(hits, 0);  // the rays aim at the scene: most hit
+        }
+      }
+    }
+  }
+  EXPECT_GE(tried, 1);
+}
+
 TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   // Different cost models put planes in different places (a hit exactly on a plane continues
   // into the next leaf, so ties there are settled by triangle id, not by the tree).
