@@ -1201,50 +1201,6 @@ std::string KdBuildStats::to_string() const {
       sah_cost);
 }
 
-namespace {
-
-// Stores the triangle records in the order the leaves first reference them, walking the tree
-// depth first (near child first, as the node array is laid out), and rewrites the references
-// to point at the new places. A leaf's triangles then share cache lines instead of being
-// scattered over the whole array; each record keeps its triangle id (TriAccel::id) for hits
-// and tie-breaking, so results do not change. Deterministic; O(nodes + references).
-void order_records_by_leaves(const std::vector<KdNode>& nodes, std::vector<std::uint32_t>& refs,
-                             std::vector<TriRecord>& records, std::vector<std::uint32_t>& index_of) {
-  constexpr std::uint32_t kUnplaced = 0xFFFFFFFFu;
-  const std::size_t n = records.size();
-  index_of.assign(n, kUnplaced);
-  std::vector<TriRecord> ordered;
-  ordered.reserve(n);
-  std::vector<std::uint32_t> stack{0};
-  while (!stack.empty()) {
-    const std::uint32_t at = stack.back();
-    stack.pop_back();
-    const KdNode& node = nodes[at];
-    if (!node.is_leaf()) {
-      stack.push_back(node.left() + 1);
-      stack.push_back(node.left());
-      continue;
-    }
-    for (std::uint32_t i = 0; i < node.count; ++i) {
-      const std::uint32_t ref = refs[node.prim_offset() + i];
-      if (index_of[ref] == kUnplaced) {
-        index_of[ref] = static_cast<std::uint32_t>(ordered.size());
-        ordered.push_back(records[ref]);
-      }
-    }
-  }
-  for (std::uint32_t& ref : refs) ref = index_of[ref];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (index_of[i] == kUnplaced) {
-      index_of[i] = static_cast<std::uint32_t>(ordered.size());
-      ordered.push_back(records[i]);
-    }
-  }
-  records.swap(ordered);
-}
-
-}  // namespace
-
 KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
                      const KdBuildOptions& options, std::span<const std::uint32_t> ids) {
   Timer timer;
@@ -1259,7 +1215,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   KdTree tree;
   tree.stats_.triangles = triangles.size();
   tree.watertight_ = options.watertight;
-  tree.records_.resize(triangles.size());
+  tree.records_ = RawArray<TriRecord>(triangles.size());
   std::vector<Aabb> tri_box(triangles.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
@@ -1270,6 +1226,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
       RTC_CHECK(id < 0x7FFFFFFFu, "kd-tree: triangle id must be below 2^31 - 1 (hits carry it as int32)");
       const glm::vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
       TriRecord& rec = tree.records_[i];
+      rec = TriRecord{};  // every byte written (the array is not initialised)
       if (options.watertight) {
         rec.watertight = make_tri_verts(a, b, c);
         rec.watertight.id = id;
@@ -1296,8 +1253,6 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t count = tris.size();
   tree.stats_.degenerate = triangles.size() - count;
   if (count == 0) {
-    tree.accel_index_.resize(triangles.size());
-    for (std::size_t i = 0; i < triangles.size(); ++i) tree.accel_index_[i] = static_cast<std::uint32_t>(i);
     tree.stats_.build_ms = timer.elapsed_ms();
     return tree;  // empty tree: every ray misses
   }
@@ -1325,8 +1280,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   tree.stats_.sah_cost = root_area > 0.0f ? cost_area / static_cast<double>(root_area) : 0.0;
   top.reset();
 
-  order_records_by_leaves(tree.nodes_, tree.prim_refs_, tree.records_, tree.accel_index_);
-  tree.leaf_records_.resize(tree.prim_refs_.size());
+  tree.leaf_records_ = RawArray<TriRecord>(tree.prim_refs_.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) tree.leaf_records_[i] = tree.records_[tree.prim_refs_[i]];
   });
