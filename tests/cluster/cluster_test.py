@@ -49,6 +49,10 @@ LARGE = ["--width", "320", "--height", "240"]
 # machine (0.13 s when these cases were written); a case that needs the run to outlast
 # something sizes its frame count for that (case_worker_frozen).
 SLOW = [*LARGE, "--spp", "2"]
+# ~4x as long a frame (~0.2 s): for cases that act while the run is still going, after waiting
+# for something (a frame logged, a worker joined), so that a faster tracer cannot end the run
+# first.
+SLOWER = [*LARGE, "--spp", "8"]
 # Fault cases time their blows against the run (kill a worker while it holds tiles, interrupt
 # the master mid-run): every frame traced whole, since temporal coherence (on by default: the
 # built-in camera stays put) makes the frames after the first a few tiles each.
@@ -628,9 +632,10 @@ def read_challenge(sock, timeout=10):
 def case_bad_peers(c):
     token = c.token_file("token", "correct horse battery staple")
     wrong_token = c.token_file("wrong-token", "not the token")
-    # 24 frames, ~1 s with one worker: the master must outlive every bad peer (a master that
-    # finishes just after rejecting the intruder may close before the intruder reads why).
-    scene = [*SLOW, "--tile", "16", *WHOLE]
+    # 24 frames, ~4 s with one worker: the master must outlive every bad peer (a master that
+    # finishes just after rejecting the intruder may close before the intruder reads why). With
+    # SLOW the run had shrunk to ~1 s as the tracer got faster.
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
@@ -779,8 +784,8 @@ def case_sigint_finishes_cleanly(c):
     # Frames slow enough that the second SIGINT lands while the frames in flight are still being
     # drained: once the drain is over the master is saying goodbye, and a signal then ends the
     # process the usual way (by design). SLOW's ~0.05 s frames drained 2 frames in ~0.07 s, before
-    # the second SIGINT, in a CI run on 2026-11-22; 8 samples a pixel make a frame ~4x as long.
-    scene = [*LARGE, "--spp", "8", "--tile", "16", *WHOLE]
+    # the second SIGINT, in a CI run on 2026-11-22; SLOWER's are ~4x as long.
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
     drained, drained_out = interrupted_run(c, "once", scene, twice=False)
     abandoned, abandoned_out = interrupted_run(c, "twice", scene, twice=True)
     ref = c.reference("ref", scene, f"0-{max(drained + abandoned)}", "png")
@@ -949,8 +954,9 @@ def case_connection_limits(c):
     """--max-unauthenticated-per-host 2 --max-connections-per-host 3: a third handshake from the
     same address, or a fourth connection, is closed before the master sends anything, and logged
     with the peer; the connections within the limits, and the frames, are unaffected."""
-    # ~1 s of frames: the master must still be up for the connections tried after the worker joined.
-    scene = [*SLOW, "--tile", "16", *WHOLE]
+    # ~4 s of frames: the master must still be up for the connections tried after the worker
+    # joined (with SLOW the run had shrunk to ~1 s as the tracer got faster).
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-23", "png")
     out = c.mkdir("run")
     master, addr, _ = c.start_master("master", [*scene, "--frames", "0-23", "--out", os.path.join(out, "m_####.png"),
