@@ -412,13 +412,17 @@ struct RayLanes {
   float dir[3][N] = {};
   float t_min[N] = {};
   float t_max[N] = {};
-  void set(int i, const RayQuery& q) {
+  void set(int i, const RayQuery& q) { set(i, q.org, q.t_min, q.dir, q.t_max); }
+  /// Lane i from the ray's parts, each stored as a float (callers pass the parts rather than a
+  /// RayQuery they just built: copying that went through vector moves of fields stored one by
+  /// one, which stalls store forwarding).
+  void set(int i, const glm::vec3& o, float t0, const glm::vec3& d, float t1) {
     for (int a = 0; a < 3; ++a) {
-      org[a][i] = q.org[a];
-      dir[a][i] = q.dir[a];
+      org[a][i] = o[a];
+      dir[a][i] = d[a];
     }
-    t_min[i] = q.t_min;
-    t_max[i] = q.t_max;
+    t_min[i] = t0;
+    t_max[i] = t1;
   }
   [[nodiscard]] RayQuery query(int i) const {
     return RayQuery{{org[0][i], org[1][i], org[2][i]}, t_min[i], {dir[0][i], dir[1][i], dir[2][i]}, t_max[i]};

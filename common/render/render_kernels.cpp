@@ -310,11 +310,10 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         unsigned want = 0;
         for (int i = 0; i < N; ++i) {
           if (!((hit_lanes >> i) & 1u)) continue;
-          const std::optional<ShadowRay> s = shadow_ray(surf[i], light);
-          if (!s) continue;
+          glm::vec3 d;
+          if (!shadow_ray_parts(surf[i], light, d, to_light[i])) continue;
           want |= 1u << i;
-          shadow.set(i, s->ray);
-          to_light[i] = s->to_light;
+          shadow.set(i, surf[i].point, 0.0f, d, 1.0f);  // shadow_ray's ray
         }
         if (want == 0) continue;
         counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
@@ -369,7 +368,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         bounce |= 1u << i;
         next.weight[i] = w;
         next.color[i] = glm::vec3(0.0f);
-        refl.set(i, RayQuery{s.point, 0.0f, r, std::numeric_limits<float>::infinity()});
+        refl.set(i, s.point, 0.0f, r, std::numeric_limits<float>::infinity());
       }
       if (bounce == 0) return;
       trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks);
@@ -456,7 +455,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
           for (int i = 0; i < N; ++i) {
             if (!((valid >> i) & 1u)) continue;
             const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
-            primary.set(i, RayQuery{r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity()});
+            primary.set(i, r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity());
           }
         }
         if (!skip) {

@@ -47,6 +47,11 @@ struct ShadowRay {
 /// Empty when the light is behind the geometric surface or the shading normal (it adds nothing).
 /// (Defined below, inline.)
 [[nodiscard]] inline std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light);
+/// The same ray in parts, for the tile kernels: false when shadow_ray is empty; otherwise the
+/// ray is (s.point, t_min 0, d, t_max 1) and to_light its normalised direction. (The kernels
+/// write the parts straight into their packets: copying the returned struct went through
+/// vector moves of fields just stored one by one, a store-forwarding stall per lane and light.)
+inline bool shadow_ray_parts(const SurfaceSample& s, const PointLight& light, glm::vec3& d, glm::vec3& to_light);
 
 // ---- definitions (inline so that each ISA's tile kernel compiles them in) ----
 
@@ -109,11 +114,16 @@ inline glm::vec3 shading_normal_at(const FrameState& fs, const glm::vec3& dir, s
 /// Inline: the tile kernels call it per lane and light, and out of line each call waited on its
 /// own square root and division (6% of a frame's profile); inlined, the lanes' overlap. The
 /// same operations in the same order at every ISA (no FMA contraction), so the same bits.
+inline bool shadow_ray_parts(const SurfaceSample& s, const PointLight& light, glm::vec3& d, glm::vec3& to_light) {
+  d = light.position - s.point;
+  if (!(glm::dot(d, s.geometric) > 0.0f)) return false;
+  to_light = shading_detail::normalize_or(d, s.normal);
+  return glm::dot(to_light, s.normal) > 0.0f;
+}
+
 inline std::optional<ShadowRay> shadow_ray(const SurfaceSample& s, const PointLight& light) {
-  const glm::vec3 d = light.position - s.point;
-  if (!(glm::dot(d, s.geometric) > 0.0f)) return std::nullopt;
-  const glm::vec3 to_light = shading_detail::normalize_or(d, s.normal);
-  if (!(glm::dot(to_light, s.normal) > 0.0f)) return std::nullopt;
+  glm::vec3 d, to_light;
+  if (!shadow_ray_parts(s, light, d, to_light)) return std::nullopt;
   // The light itself sits at t = 1.
   return ShadowRay{RayQuery{s.point, 0.0f, d, 1.0f}, to_light};
 }

@@ -5,11 +5,14 @@
 # tests/bench/results/NAME.txt (one line per view, label, round and mode: scene label round mode
 # Mrays/s build_ms nodes SAH triangles) and NAME.md (tests/bench/summarize_kd_ab.py WHAT).
 # Usage: tests/bench/ab_loop.sh NAME SCENES_DIR ROUNDS WHAT LABEL_A BIN_A "ARGS_A" LABEL_B BIN_B "ARGS_B"
+# AB_MODES: the rtc-bench modes to time (default "primary shadow"; e.g. "full" for whole frames).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 [ $# -eq 10 ] || { echo "usage: $0 NAME SCENES_DIR ROUNDS WHAT LABEL_A BIN_A ARGS_A LABEL_B BIN_B ARGS_B" >&2; exit 2; }
 name=$1 scenes=$2 rounds=$3 what=$4
 labels=("$5" "$8") bins=("$6" "$9") args=("$7" "${10}")
+mode_args=""
+for m in ${AB_MODES:-primary shadow}; do mode_args="$mode_args --mode $m"; done
 out=tests/bench/results
 mkdir -p "$out"
 : > "$out/$name.txt.tmp"
@@ -20,7 +23,8 @@ for r in $(seq "$rounds"); do
       v=${labels[$k]}
       echo "${bins[$k]} $view ${args[$k]} ($v, round $r of $rounds)" >&2
       # shellcheck disable=SC2086  # the extra arguments are words
-      "${bins[$k]}" "$view" --threads 1 --reps 5 --build-reps 3 --mode primary --mode shadow --isa avx512 \
+      # shellcheck disable=SC2086
+      "${bins[$k]}" "$view" --threads 1 --reps 5 --build-reps 3 $mode_args --isa avx512 \
         --cpu-time --json ${args[$k]} |
         python3 -c "
 import json, sys

@@ -5,6 +5,7 @@
 # run_kd_ab.sh's, with A and B for the value) and NAME.md (tests/bench/summarize_kd_ab.py: ratios
 # B over A, paired round by round).
 # Usage: tests/bench/run_bin_ab.sh BIN_A BIN_B NAME [SCENES_DIR] [ROUNDS]
+#   AB_MODES="full" (or "primary shadow full") times whole Whitted frames too (ab_loop.sh).
 #   e.g. cp build/release/tests/bench/rtc-bench /tmp/before; (change, rebuild);
 #        tests/bench/run_bin_ab.sh /tmp/before build/release/tests/bench/rtc-bench leaf_records
 set -euo pipefail

@@ -4,7 +4,9 @@
 Usage: summarize_kd_ab.py NAME.txt OPTION NAME
 Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
 median over rounds of the paired throughput ratio (second value over first, same round) for
-primary and shadow rays. The values keep the order run_kd_ab.sh ran them in (first seen first).
+each mode in the lines: primary and shadow rays, and whole Whitted frames (full: rays per
+second of the frame, so the ratio is the frame's speed). The values keep the order
+run_kd_ab.sh ran them in (first seen first).
 """
 import collections
 import statistics
@@ -35,6 +37,8 @@ def main(path, option, name):
     if len(values) != 2:
         sys.exit(f"summarize_kd_ab: expected two values of {option} in {path}, found {values}")
     a, b = values
+    modes = [m for m in ("primary", "shadow", "full") if any(k[1] == m for k in runs)]
+    label = {"primary": "primary", "shadow": "shadow", "full": "full frame"}
     scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
     print(f"# {what}: {a} against {b}\n")
     sah_note = ("The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. "
@@ -44,22 +48,23 @@ def main(path, option, name):
     command = (f"tests/bench/run_bin_ab.sh A B {name}" if option == "binaries" else
                f"tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}")
     print(f"`{command}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
-          "process CPU time, `--reps 5 --build-reps 3`, the two values alternating view by view in each round. "
+          f"process CPU time, `--reps 5 --build-reps 3`, modes {', '.join(modes)}, the two values alternating view by view in each round. "
           f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
           "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "
           "kd-tree). " + sah_note + "On this VM one binary's runs vary by 10-15%: a view whose tree did not change (equal node counts) shows that noise.\n")
-    print(f"| view | tris | nodes {a} → {b} | SAH {a} → {b} | build ms {a} → {b} | primary {b}/{a} | shadow {b}/{a} |")
-    print("|---|---:|---|---|---|---|---|")
-    medians = {"primary": [], "shadow": []}
+    print(f"| view | tris | nodes {a} → {b} | SAH {a} → {b} | build ms {a} → {b} | " +
+          " | ".join(f"{label[m]} {b}/{a}" for m in modes) + " |")
+    print("|---|---:|---|---|---|" + "---|" * len(modes))
+    medians = {m: [] for m in modes}
     builds = []
     for s in scenes:
         cells = {}
-        for mode in ("primary", "shadow"):
+        for mode in modes:
             pairs = [v for k, v in runs.items() if k[0] == s and k[1] == mode and a in v and b in v]
             ratios = sorted(v[b][0] / v[a][0] for v in pairs)
             cells[mode] = ratios
             medians[mode].append(statistics.median(ratios))
-        pairs = [v for k, v in runs.items() if k[0] == s and k[1] == "primary" and a in v and b in v]
+        pairs = [v for k, v in runs.items() if k[0] == s and k[1] == modes[0] and a in v and b in v]
         build_a = statistics.median(v[a][1] for v in pairs)
         build_b = statistics.median(v[b][1] for v in pairs)
         first = pairs[0]
@@ -68,13 +73,13 @@ def main(path, option, name):
             builds.append(build_b / build_a)
         text = {m: f"{statistics.median(r):.2f} ({', '.join(f'{x:.2f}' for x in r)})" for m, r in cells.items()}
         print(f"| {s} | {first[a][4]:,} | {first[a][2]:,} → {first[b][2]:,} | {first[a][3]} → {first[b][3]} | "
-              f"{build_a:.0f} → {build_b:.0f}{build_ratio} | {text['primary']} | {text['shadow']} |")
+              f"{build_a:.0f} → {build_b:.0f}{build_ratio} | " + " | ".join(text[m] for m in modes) + " |")
     print()
     if not builds:
         builds = [float("nan")]
-    print(f"Over the views: primary {b}/{a} median {statistics.median(medians['primary']):.2f} "
-          f"(views {min(medians['primary']):.2f}-{max(medians['primary']):.2f}), shadow median "
-          f"{statistics.median(medians['shadow']):.2f} ({min(medians['shadow']):.2f}-{max(medians['shadow']):.2f}); "
+    parts = [f"{label[m]} {b}/{a} median {statistics.median(medians[m]):.2f} "
+             f"(views {min(medians[m]):.2f}-{max(medians[m]):.2f})" for m in modes]
+    print(f"Over the views: {', '.join(parts)}; "
           f"builds of 10 ms or more {min(builds):.2f}-{max(builds):.2f}x the time (median {statistics.median(builds):.2f}).")
 
 
