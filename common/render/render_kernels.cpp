@@ -21,6 +21,7 @@
 #include "common/accel/trace.h"
 #include "common/image/image.h"
 #include "common/math/det_math.h"
+#include "common/math/det_math_lanes.h"
 #include "common/render/frame_state.h"
 #include "common/render/render_kernels.h"
 #include "common/render/shading.h"
@@ -326,20 +327,45 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
           const unsigned open = want & ~by_static;
           if (open != 0) mark_shadows<N>(*marks, shadow, open);
         }
-        for (int i = 0; i < N; ++i) {
-          if (!((want >> i) & 1u) || ((blocked >> i) & 1u)) continue;
-          const SurfaceSample& s = surf[i];
-          const Material& m = *s.material;
-          const float n_dot_l = glm::dot(s.normal, to_light[i]);
-          glm::vec3 contrib = m.diffuse * n_dot_l;
-          if constexpr ((F & kHighlights) != 0) {
+        const unsigned lit = want & ~blocked;
+        if constexpr ((F & kHighlights) == 0) {
+          for (int i = 0; i < N; ++i) {
+            if (!((lit >> i) & 1u)) continue;
+            const SurfaceSample& s = surf[i];
+            const float n_dot_l = glm::dot(s.normal, to_light[i]);
+            local[i] = local[i] + light.color * (s.material->diffuse * n_dot_l);
+          }
+        } else {
+          // Diffuse per lane; the highlights' powers of all lit lanes in one batch
+          // (det_powf_lanes: det_powf's bits, eight lanes side by side), then added per lane.
+          glm::vec3 contrib[N]{};  // read only where `lit`; zeroed for GCC's -Wmaybe-uninitialized
+          float base[N], power[N], highlight[N];
+          int slot[N]{};
+          unsigned shiny = 0;
+          std::size_t powers = 0;
+          for (int i = 0; i < N; ++i) {
+            if (!((lit >> i) & 1u)) continue;
+            const SurfaceSample& s = surf[i];
+            const Material& m = *s.material;
+            const float n_dot_l = glm::dot(s.normal, to_light[i]);
+            contrib[i] = m.diffuse * n_dot_l;
             if (max3(m.specular) > 0.0f) {
               const glm::vec3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
               const float r_dot_v = glm::dot(r, s.view);
-              if (r_dot_v > 0.0f) contrib = contrib + m.specular * det_powf(r_dot_v, m.shininess);
+              if (r_dot_v > 0.0f) {
+                shiny |= 1u << i;
+                base[powers] = r_dot_v;
+                power[powers] = m.shininess;
+                slot[i] = static_cast<int>(powers++);
+              }
             }
           }
-          local[i] = local[i] + light.color * contrib;
+          if (shiny != 0) det_powf_lanes(base, power, highlight, powers);
+          for (int i = 0; i < N; ++i) {
+            if (!((lit >> i) & 1u)) continue;
+            if ((shiny >> i) & 1u) contrib[i] = contrib[i] + surf[i].material->specular * highlight[slot[i]];
+            local[i] = local[i] + light.color * contrib[i];
+          }
         }
       }
     }
@@ -555,7 +581,7 @@ const char* kernel_name_entry(const FrameState& fs, const TileKernelOptions& opt
 }  // namespace
 
 const RenderKernels& render_kernels_for_isa() {
-  static const RenderKernels kernels{Isa::RTC_ISA_ENUM, &render_tile_entry, &kernel_name_entry};
+  static const RenderKernels kernels{Isa::RTC_ISA_ENUM, &render_tile_entry, &kernel_name_entry, &det_powf_lanes};
   return kernels;
 }
 

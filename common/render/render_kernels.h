@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 
 #include "common/base/isa.h"
@@ -56,6 +57,9 @@ struct RenderKernels {
   /// Which instantiation render_tile runs for `state` with `options` and AOV channels or not:
   /// "general", "ray-cast" (no lights, no mirrors) or "ray-cast+aovs".
   const char* (*kernel_name)(const FrameState& state, const TileKernelOptions& options, bool aovs) = nullptr;
+  /// out[i] = det_powf(x[i], e[i]) for i < count as the tile kernels compute the Phong
+  /// highlight, several lanes at once (for tests: the same bits as det_powf).
+  void (*highlight_powers)(const float* x, const float* e, float* out, std::size_t count) = nullptr;
 };
 
 /// Kernels for `isa`; throws rtc::Error when not compiled in or not supported by this CPU.

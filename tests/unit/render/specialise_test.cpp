@@ -6,13 +6,18 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
 #include <tbb/global_control.h>
 
 #include "common/image/image.h"
+#include "common/math/det_math.h"
 #include "common/math/frustum_cull.h"
 #include "common/render/render_kernels.h"
 #include "common/render/renderer.h"
@@ -285,6 +290,59 @@ TEST(Specialise, SkippedRaysLeaveTheSameTemporalMarks) {
       }
     }
   }
+}
+
+
+// The tile kernels compute the Phong highlight's power for a light's lit lanes in one batch,
+// eight lanes to a vector of doubles (common/math/det_math_lanes.h). Every lane must get
+// det_powf's bits, at every ISA, for any batch length, including the inputs det_powf settles
+// early (e = 0, x <= 0, x >= 1, NaN, infinities) and powers below the smallest float.
+TEST(HighlightPowers, EveryIsaGivesDetPowfsBits) {
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<float> x, e;
+  const float specials_x[] = {0.0f, -0.0f, -0.5f, 1.0f, 1.5f, 1e-45f, 1e-38f, 0x1.fffffep-1f, 0.5f, 0.70710677f,
+                              0.70710683f, std::numeric_limits<float>::quiet_NaN(),
+                              std::numeric_limits<float>::infinity()};
+  const float specials_e[] = {0.0f, 1e-45f, 1.0f, 2.0f, 10.0f, 64.0f, 128.0f, 1e4f, 1e5f, 3e38f,
+                              std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(),
+                              -1.0f};
+  for (float a : specials_x) {
+    for (float b : specials_e) {
+      x.push_back(a);
+      e.push_back(b);
+    }
+  }
+  for (int i = 0; i < 20000; ++i) {
+    x.push_back(unit(rng));
+    e.push_back(i % 4 == 0 ? unit(rng) * 200.0f : static_cast<float>(1 + i % 97));
+  }
+  std::vector<float> want(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) want[i] = det_powf(x[i], e[i]);
+  int tried = 0;
+  for (const Isa isa : compiled_isas()) {
+    if (!cpu_supports(isa)) continue;
+    ++tried;
+    const RenderKernels& k = render_kernels(isa);
+    ASSERT_NE(k.highlight_powers, nullptr);
+    // Whole, in batches of 1..17 (tails of every length), and the specials alone.
+    for (const std::size_t batch : {x.size(), std::size_t{1}, std::size_t{3}, std::size_t{8}, std::size_t{13},
+                                    std::size_t{16}, std::size_t{17}}) {
+      std::vector<float> got(x.size(), -1.0f);
+      for (std::size_t first = 0; first < x.size(); first += batch) {
+        const std::size_t n = std::min(batch, x.size() - first);
+        k.highlight_powers(x.data() + first, e.data() + first, got.data() + first, n);
+      }
+      for (std::size_t i = 0; i < x.size(); ++i) {
+        std::uint32_t a, b;
+        std::memcpy(&a, &want[i], 4);
+        std::memcpy(&b, &got[i], 4);
+        ASSERT_EQ(a, b) << isa_name(isa) << ", batch " << batch << ": det_powf(" << x[i] << ", " << e[i]
+                        << ") = " << want[i] << ", the batch gave " << got[i];
+      }
+    }
+  }
+  EXPECT_GE(tried, 1);
 }
 
 }  // namespace
