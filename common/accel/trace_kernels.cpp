@@ -18,8 +18,9 @@ constexpr int kWidth = RTC_ISA_WIDTH;  // 4 (SSE4.2), 8 (AVX2) or 16 (AVX-512)
 
 // transpose_rays: the N rays row[0..N-1] (32-byte RayQuery records: org, t_min, dir, t_max) as
 // one packet, by vector loads and the unpack/shuffle 8x8 transpose. It replaced eight gathers
-// per packet (AVX-512 and AVX2; SSE4.2 stored lane by lane), which on this AMD EPYC took as long as the 16-wide traversal
-// itself on small scenes: 16-wide primary rays 1.6x on spd-teapot.
+// per packet (AVX-512 and AVX2; SSE4.2 stored lane by lane), which on this AMD EPYC took as
+// long as the 16-wide traversal itself on small scenes: 16-wide primary rays 1.6x on
+// spd-teapot.
 #if RTC_ISA_WIDTH == 16
 inline void transpose_rays(const RayQuery* const* row, RayPacket<16>& p) {
   // Row k holds ray k in its low half and ray k + 8 in its high half; the 8x8 transposes of

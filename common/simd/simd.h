@@ -252,8 +252,6 @@ struct vfloat<8> {
   vfloat(float f) : v(_mm256_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m256 x) : v(x) {}
   static vfloat load(const float* p) { return vfloat(_mm256_loadu_ps(p)); }
-  /// Lane i = base[index lane i] (indices in floats).
-  static vfloat gather(const float* base, __m256i index) { return vfloat(_mm256_i32gather_ps(base, index, 4)); }
   void store(float* p) const { _mm256_storeu_ps(p, v); }
   [[nodiscard]] float lane(int i) const {
     alignas(32) float tmp[8];
@@ -355,10 +353,6 @@ struct vfloat<16> {
   vfloat(float f) : v(_mm512_set1_ps(f)) {}  // NOLINT: broadcasting is the point
   explicit vfloat(__m512 x) : v(x) {}
   static vfloat load(const float* p) { return vfloat(_mm512_loadu_ps(p)); }
-  /// Lane i = base[index lane i] (indices in floats).
-  static vfloat gather(const float* base, __m512i index) {
-    return vfloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, index, base, 4));
-  }
   void store(float* p) const { _mm512_storeu_ps(p, v); }
   [[nodiscard]] float lane(int i) const {
     alignas(64) float tmp[16];
