@@ -271,7 +271,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
 
   int lead = 0;
   while (!active.lane(lead)) ++lead;
-  int sign[3];
+  // Bit a set: the rays run towards -a. Kept in a register, not an array: the child index
+  // follows from it at every inner node, and an array lookup would put a load on that chain.
+  std::uint32_t sign_bits = 0;
   PacketVec3<N> inv_dir;
   inv_dir[0] = vfloat<N>(1.0f) / ray.dir[0];
   inv_dir[1] = vfloat<N>(1.0f) / ray.dir[1];
@@ -288,9 +290,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     far = select(hit.prim > vint<N>(-1), min(far, hit_reach(hit.t)), far);
   }
   for (int axis = 0; axis < 3; ++axis) {
-    sign[axis] = sign_bit(ray.dir[axis]).lane(lead) ? 1 : 0;
-    const float entry = sign[axis] ? box.hi[axis] : box.lo[axis];
-    const float exit = sign[axis] ? box.lo[axis] : box.hi[axis];
+    const bool negative = sign_bit(ray.dir[axis]).lane(lead);
+    sign_bits |= static_cast<std::uint32_t>(negative) << axis;
+    const float entry = negative ? box.hi[axis] : box.lo[axis];
+    const float exit = negative ? box.lo[axis] : box.hi[axis];
     const vfloat<N> t_entry = (vfloat<N>(entry) - ray.org[axis]) * inv_dir[axis];
     const vfloat<N> t_exit = (vfloat<N>(exit) - ray.org[axis]) * inv_dir[axis];
     near = max(t_entry, near);  // NaN (origin on the face, parallel ray) keeps near
@@ -334,8 +337,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     if (!node.is_leaf()) {
       const int axis = node.axis();
       const vfloat<N> t_split = (vfloat<N>(node.split) - ray.org[axis]) * inv_dir[axis];
-      const std::uint32_t near_child = node.left() + static_cast<std::uint32_t>(sign[axis]);
-      const std::uint32_t far_child = node.left() + static_cast<std::uint32_t>(sign[axis] ^ 1);
+      const std::uint32_t sign = (sign_bits >> axis) & 1u;
+      const std::uint32_t near_child = node.left() + sign;
+      const std::uint32_t far_child = node.left() + (sign ^ 1u);
       const vfloat<N> near_end = min(t_split, far);     // NaN: far
       const vfloat<N> far_start = max(t_split, near);   // NaN: near
       const vbool<N> go_near = active & (near <= reach(near_end));

@@ -3,7 +3,8 @@
 # binary with extra arguments) on every view of the scene pack, one thread, 16-wide packets
 # (avx512), process CPU time, alternating view by view, ROUNDS times. Writes
 # tests/bench/results/NAME.txt (one line per view, label, round and mode: scene label round mode
-# Mrays/s build_ms nodes SAH triangles) and NAME.md (tests/bench/summarize_kd_ab.py WHAT).
+# Mrays/s build_ms nodes SAH triangles; primary and shadow runs add a line for the same rays traced
+# one at a time, mode primary-single / shadow-single) and NAME.md (tests/bench/summarize_kd_ab.py WHAT).
 # Usage: tests/bench/ab_loop.sh NAME SCENES_DIR ROUNDS WHAT LABEL_A BIN_A "ARGS_A" LABEL_B BIN_B "ARGS_B"
 # AB_MODES: the rtc-bench modes to time (default "primary shadow"; e.g. "full" for whole frames).
 set -euo pipefail
@@ -31,7 +32,10 @@ import json, sys
 for line in sys.stdin:
     j = json.loads(line)
     print(j['scene'], '$v', '$r', j['mode'], round(j['mrays_per_s'], 3), round(j['build_ms'], 1), j['kd_nodes'],
-          round(j['kd_sah_cost'], 2), j['triangles'])" >> "$out/$name.txt.tmp"
+          round(j['kd_sah_cost'], 2), j['triangles'])
+    if 'mrays_per_s_single' in j:  # the same rays one at a time (N=1 traversal)
+        print(j['scene'], '$v', '$r', j['mode'] + '-single', round(j['mrays_per_s_single'], 3), round(j['build_ms'], 1),
+              j['kd_nodes'], round(j['kd_sah_cost'], 2), j['triangles'])" >> "$out/$name.txt.tmp"
     done
   done
 done

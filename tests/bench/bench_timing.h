@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <ctime>
+#include <utility>
 #include <vector>
 
 #include "common/base/timer.h"
@@ -20,11 +21,14 @@ inline double cpu_ms() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-/// Median time of `reps` calls of `fn`, in ms.
-template <typename Fn>
-double time_median_ms(int reps, Fn&& fn) {
+/// Median time of `reps` calls of `fn`, in ms; `untimed` runs before each call, outside the
+/// timing (builders pass the release of the previous result there, so that freeing it is not
+/// counted as part of the next build).
+template <typename Fn, typename Untimed>
+double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
   std::vector<double> ms;
   for (int r = 0; r < reps; ++r) {
+    untimed();
     Timer t;
     const double c0 = cpu_ms();
     fn();
@@ -32,6 +36,12 @@ double time_median_ms(int reps, Fn&& fn) {
   }
   std::sort(ms.begin(), ms.end());
   return ms[ms.size() / 2];
+}
+
+/// Median time of `reps` calls of `fn`, in ms.
+template <typename Fn>
+double time_median_ms(int reps, Fn&& fn) {
+  return time_median_ms(reps, std::forward<Fn>(fn), [] {});
 }
 
 }  // namespace rtc::bench

@@ -4,7 +4,8 @@
 Usage: summarize_kd_ab.py NAME.txt OPTION NAME
 Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
 median over rounds of the paired throughput ratio (second value over first, same round) for
-each mode in the lines: primary and shadow rays, and whole Whitted frames (full: rays per
+each mode in the lines: primary and shadow rays (in packets, and as primary-single and
+shadow-single the same rays traced one at a time), and whole Whitted frames (full: rays per
 second of the frame, so the ratio is the frame's speed). The values keep the order
 run_kd_ab.sh ran them in (first seen first).
 """
@@ -37,8 +38,9 @@ def main(path, option, name):
     if len(values) != 2:
         sys.exit(f"summarize_kd_ab: expected two values of {option} in {path}, found {values}")
     a, b = values
-    modes = [m for m in ("primary", "shadow", "full") if any(k[1] == m for k in runs)]
-    label = {"primary": "primary", "shadow": "shadow", "full": "full frame"}
+    modes = [m for m in ("primary", "shadow", "primary-single", "shadow-single", "full") if any(k[1] == m for k in runs)]
+    label = {"primary": "primary", "shadow": "shadow", "primary-single": "single-ray primary",
+             "shadow-single": "single-ray shadow", "full": "full frame"}
     scenes = sorted({k[0] for k in runs}, key=lambda s: (min(v[a][4] for k, v in runs.items() if k[0] == s and a in v), s))
     print(f"# {what}: {a} against {b}\n")
     sah_note = ("The SAH cost is computed with the build's own K_T, so it is not comparable across K_T. "
@@ -48,7 +50,7 @@ def main(path, option, name):
     command = (f"tests/bench/run_bin_ab.sh A B {name}" if option == "binaries" else
                f"tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}")
     print(f"`{command}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
-          f"process CPU time, `--reps 5 --build-reps 3`, modes {', '.join(modes)}, the two values alternating view by view in each round. "
+          f"process CPU time, `--reps 5 --build-reps 3`, modes {', '.join(modes)} (a -single mode: the same rays traced one at a time), the two values alternating view by view in each round. "
           f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
           "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "
           "kd-tree). " + sah_note + "On this VM one binary's runs vary by 10-15%: a view whose tree did not change (equal node counts) shows that noise.\n")
