@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <type_traits>
 #include <utility>
 
 #include "common/accel/kd_tree.h"
@@ -113,6 +114,160 @@ struct WaldTest {
     intersect_triangle<N, kOcclusion>(rec.wald, static_cast<std::int32_t>(rec.wald.id), ray, active, hit, occluded);
   }
 };
+
+/// A single ray (N = 1) against a leaf with Wald's test, W triangles at a time: one triangle
+/// per SIMD lane. Each lane does the scalar test's float operations in the same order, so the
+/// same t, beta and gamma bits. The lanes' hits are then reduced by the closest-hit order
+/// (smaller t, then the higher id), which is the result of testing the triangles one by one in
+/// any order (accepted_t). A leaf with fewer than W triangles repeats its last one in the
+/// spare lanes: the same candidate twice changes nothing.
+///
+/// records: the 48-byte TriAccel records, 16-byte aligned, each three 16-byte rows
+/// (n_u n_v n_d k | b_nu b_nv b_d id | c_nu c_nv c_d pad), transposed by loads and shuffles.
+template <int W>
+struct LeafLanes;
+
+template <>
+struct LeafLanes<4> {
+  /// Row `row` of the four records as four vectors: word w of record j in lane j of out[w].
+  static void rows(const TriRecord* const* at, int row, vfloat<4>* out) {
+    __m128 r0 = _mm_load_ps(reinterpret_cast<const float*>(at[0]) + 4 * row);
+    __m128 r1 = _mm_load_ps(reinterpret_cast<const float*>(at[1]) + 4 * row);
+    __m128 r2 = _mm_load_ps(reinterpret_cast<const float*>(at[2]) + 4 * row);
+    __m128 r3 = _mm_load_ps(reinterpret_cast<const float*>(at[3]) + 4 * row);
+    _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+    out[0] = vfloat<4>(r0);
+    out[1] = vfloat<4>(r1);
+    out[2] = vfloat<4>(r2);
+    out[3] = vfloat<4>(r3);
+  }
+  static vint<4> as_int(vfloat<4> x) { return vint<4>(_mm_castps_si128(x.v)); }
+};
+
+#if RTC_ISA_WIDTH >= 8
+template <>
+struct LeafLanes<8> {
+  /// Records 0-3 in the low 128-bit halves, 4-7 in the high ones; the in-half 4x4 transpose
+  /// (the body of _MM_TRANSPOSE4_PS on 256-bit registers) then gives lane j record j.
+  static void rows(const TriRecord* const* at, int row, vfloat<8>* out) {
+    __m256 r[4];
+    for (int j = 0; j < 4; ++j) {
+      r[j] = _mm256_insertf128_ps(
+          _mm256_castps128_ps256(_mm_load_ps(reinterpret_cast<const float*>(at[j]) + 4 * row)),
+          _mm_load_ps(reinterpret_cast<const float*>(at[j + 4]) + 4 * row), 1);
+    }
+    const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]);
+    const __m256 t1 = _mm256_unpacklo_ps(r[2], r[3]);
+    const __m256 t2 = _mm256_unpackhi_ps(r[0], r[1]);
+    const __m256 t3 = _mm256_unpackhi_ps(r[2], r[3]);
+    out[0] = vfloat<8>(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0)));
+    out[1] = vfloat<8>(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2)));
+    out[2] = vfloat<8>(_mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0)));
+    out[3] = vfloat<8>(_mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(3, 2, 3, 2)));
+  }
+  static vint<8> as_int(vfloat<8> x) { return vint<8>(_mm256_castps_si256(x.v)); }
+};
+#endif
+
+/// Tests triangles [first, first + W) of a leaf of `count` (indices past the end repeat the
+/// last triangle). Returns true when an occlusion query is done (a hit).
+template <int W, bool kOcclusion>
+inline bool intersect_lanes(const TriRecord* leaf, std::uint32_t first, std::uint32_t count,
+                            const RayPacket<1>& ray, HitPacket<1>& hit) {
+  const TriRecord* at[W];
+  for (int j = 0; j < W; ++j) {
+    const std::uint32_t i = first + static_cast<std::uint32_t>(j);
+    at[j] = leaf + (i < count ? i : count - 1);
+  }
+  vfloat<W> f[12];
+  LeafLanes<W>::rows(at, 0, f);
+  LeafLanes<W>::rows(at, 1, f + 4);
+  LeafLanes<W>::rows(at, 2, f + 8);
+  const vfloat<W>& n_u = f[0];
+  const vfloat<W>& n_v = f[1];
+  const vfloat<W>& n_d = f[2];
+  const vint<W> k = LeafLanes<W>::as_int(f[3]);
+  const vint<W> id = LeafLanes<W>::as_int(f[7]);
+  // The ray's components by each lane's projection axis k (u = k + 1, v = k + 2, mod 3).
+  const vbool<W> k0 = k == vint<W>(0), k1 = k == vint<W>(1);
+  const auto by_axis = [&](const PacketVec3<1>& c, int shift) {
+    const vfloat<W> x(c[0].v), y(c[1].v), z(c[2].v);
+    if (shift == 0) return select(k0, x, select(k1, y, z));
+    if (shift == 1) return select(k0, y, select(k1, z, x));
+    return select(k0, z, select(k1, x, y));
+  };
+  const vfloat<W> ok = by_axis(ray.org, 0), ou = by_axis(ray.org, 1), ov = by_axis(ray.org, 2);
+  const vfloat<W> dk = by_axis(ray.dir, 0), du = by_axis(ray.dir, 1), dv = by_axis(ray.dir, 2);
+  // intersect_triangle's operations, in its order.
+  const vfloat<W> num = ((n_d - ok) - n_u * ou) - n_v * ov;
+  const vfloat<W> den = (dk + n_u * du) + n_v * dv;
+  const vfloat<W> t = num / den;
+  const vfloat<W> t_min(ray.t_min.v), t_max(ray.t_max.v);
+  vbool<W> active = t > t_min;
+  if constexpr (kOcclusion) {
+    active &= t < t_max;
+  } else {
+    const vfloat<W> hit_t(hit.t.v);
+    active &= (t < hit_t) | ((t == hit_t) & (id > vint<W>(hit.prim.v)) & (t < t_max));
+  }
+  if (none(active)) return false;
+  const vfloat<W> hu = ou + t * du;
+  const vfloat<W> hv = ov + t * dv;
+  const vfloat<W> beta = (f[4] * hu + f[5] * hv) + f[6];
+  const vfloat<W> gamma = (f[8] * hu + f[9] * hv) + f[10];
+  active &= (beta >= vfloat<W>(0.0f)) & (gamma >= vfloat<W>(0.0f)) & (beta + gamma <= vfloat<W>(1.0f));
+  unsigned lanes = bits(active);
+  if (lanes == 0) return false;
+  if constexpr (kOcclusion) {
+    return true;
+  } else {
+    alignas(32) float ts[W], bs[W], gs[W];
+    alignas(32) std::int32_t ids[W];
+    t.store(ts);
+    beta.store(bs);
+    gamma.store(gs);
+    id.store(ids);
+    int best = __builtin_ctz(lanes);
+    for (lanes &= lanes - 1; lanes != 0; lanes &= lanes - 1) {
+      const int j = __builtin_ctz(lanes);
+      if (ts[j] < ts[best] || (ts[j] == ts[best] && ids[j] > ids[best])) best = j;
+    }
+    hit.t = vfloat<1>(ts[best]);
+    hit.beta = vfloat<1>(bs[best]);
+    hit.gamma = vfloat<1>(gs[best]);
+    hit.prim = vint<1>(ids[best]);
+    return false;
+  }
+}
+
+/// A single ray against a whole leaf with Wald's test (see LeafLanes). kOcclusion: stops at
+/// the first hit and sets `occluded`.
+template <bool kOcclusion>
+inline void intersect_leaf_single(const TriRecord* leaf, std::uint32_t count, const RayPacket<1>& ray,
+                                  HitPacket<1>& hit, vbool<1>& occluded) {
+  if (count == 1) {
+    intersect_triangle<1, kOcclusion>(leaf[0].wald, static_cast<std::int32_t>(leaf[0].wald.id), ray, vbool<1>(true),
+                                      hit, occluded);
+    return;
+  }
+#if RTC_ISA_WIDTH >= 8
+  if (count > 4) {
+    for (std::uint32_t first = 0; first < count; first += 8) {
+      if (intersect_lanes<8, kOcclusion>(leaf, first, count, ray, hit)) {
+        occluded = vbool<1>(true);
+        return;
+      }
+    }
+    return;
+  }
+#endif
+  for (std::uint32_t first = 0; first < count; first += 4) {
+    if (intersect_lanes<4, kOcclusion>(leaf, first, count, ray, hit)) {
+      occluded = vbool<1>(true);
+      return;
+    }
+  }
+}
 
 /// |x| (clears the sign bit, also of -0).
 template <int N>
@@ -367,12 +522,18 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     }
 
     const TriRecord* leaf = records + node.prim_offset();
-    for (std::uint32_t i = 0; i < node.count; ++i) {
-      test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
-      if constexpr (kOcclusion) {
-        // A shadow ray stops at its first hit: occluded lanes test nothing more.
-        active &= !occluded;
-        if (none(active)) break;
+    if constexpr (N == 1 && std::is_same_v<Test<N>, WaldTest<N>>) {
+      // A single ray's segment is never empty here (a child is entered only with a non-empty
+      // one), so the whole leaf is tested, several triangles at a time.
+      if (node.count != 0) intersect_leaf_single<kOcclusion>(leaf, node.count, ray, hit, occluded);
+    } else {
+      for (std::uint32_t i = 0; i < node.count; ++i) {
+        test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
+        if constexpr (kOcclusion) {
+          // A shadow ray stops at its first hit: occluded lanes test nothing more.
+          active &= !occluded;
+          if (none(active)) break;
+        }
       }
     }
     // An occluded lane is finished. A closest-hit lane skips a stacked subtree only when its
