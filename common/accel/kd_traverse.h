@@ -412,6 +412,17 @@ struct WatertightTest {
   }
 };
 
+/// Lane i of a packet as a one-ray packet.
+template <int N>
+inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
+  RayPacket<1> r;
+  r.org = PacketVec3<1>{p.org[0].lane(i), p.org[1].lane(i), p.org[2].lane(i)};
+  r.dir = PacketVec3<1>{p.dir[0].lane(i), p.dir[1].lane(i), p.dir[2].lane(i)};
+  r.t_min = p.t_min.lane(i);
+  r.t_max = p.t_max.lane(i);
+  return r;
+}
+
 /// Traverses the tree with the active lanes, which must share the sign of every direction
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
@@ -527,7 +538,36 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       // one), so the whole leaf is tested, several triangles at a time.
       if (node.count != 0) intersect_leaf_single<kOcclusion>(leaf, node.count, ray, hit, occluded);
     } else {
-      for (std::uint32_t i = 0; i < node.count; ++i) {
+      bool tested = false;
+      if constexpr (N > 1 && std::is_same_v<Test<N>, WaldTest<N>>) {
+        // One live lane (a divergent packet's lanes part ways lower in the tree): that ray
+        // alone, several triangles at a time, beats testing the triangles one by one for the
+        // whole packet. Two or more lanes each alone measured slower (trace_experiments.md).
+        const unsigned live = bits(active);
+        if (node.count >= 2 && live != 0 && (live & (live - 1)) == 0) {
+          const int i = __builtin_ctz(live);
+          const RayPacket<1> r = lane_ray(ray, i);
+          if constexpr (kOcclusion) {
+            HitPacket<1> unused{0.0f, 0.0f, 0.0f, -1};
+            vbool<1> occ(false);
+            intersect_leaf_single<true>(leaf, node.count, r, unused, occ);
+            if (occ.m) occluded |= vbool<N>::from_bits(live);
+          } else {
+            const std::int32_t prim = hit.prim.lane(i);
+            HitPacket<1> h{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), prim};
+            vbool<1> unused(false);
+            intersect_leaf_single<false>(leaf, node.count, r, h, unused);
+            if (h.prim.v != prim) {  // a new hit is always another triangle
+              hit.t.set_lane(i, h.t.v);
+              hit.beta.set_lane(i, h.beta.v);
+              hit.gamma.set_lane(i, h.gamma.v);
+              hit.prim.set_lane(i, h.prim.v);
+            }
+          }
+          tested = true;
+        }
+      }
+      for (std::uint32_t i = 0; !tested && i < node.count; ++i) {
         test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
         if constexpr (kOcclusion) {
           // A shadow ray stops at its first hit: occluded lanes test nothing more.
@@ -603,17 +643,6 @@ struct RayLanes {
     return p;
   }
 };
-
-/// Lane i of a packet as a one-ray packet.
-template <int N>
-inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
-  RayPacket<1> r;
-  r.org = PacketVec3<1>{p.org[0].lane(i), p.org[1].lane(i), p.org[2].lane(i)};
-  r.dir = PacketVec3<1>{p.dir[0].lane(i), p.dir[1].lane(i), p.dir[2].lane(i)};
-  r.t_min = p.t_min.lane(i);
-  r.t_max = p.t_max.lane(i);
-  return r;
-}
 
 /// One lane of a packet traced alone (N = 1), its result written back into the packet.
 template <int N, bool kOcclusion, template <int> class Test>
