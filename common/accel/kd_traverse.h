@@ -240,6 +240,16 @@ inline bool intersect_lanes(const TriRecord* leaf, std::uint32_t first, std::uin
   }
 }
 
+/// Triangles [0, count) of a leaf, W at a time; true when an occlusion query found a hit.
+template <int W, bool kOcclusion>
+inline bool intersect_leaf_lanes(const TriRecord* leaf, std::uint32_t count, const RayPacket<1>& ray,
+                                 HitPacket<1>& hit) {
+  for (std::uint32_t first = 0; first < count; first += W) {
+    if (intersect_lanes<W, kOcclusion>(leaf, first, count, ray, hit)) return true;
+  }
+  return false;
+}
+
 /// A single ray against a whole leaf with Wald's test (see LeafLanes). kOcclusion: stops at
 /// the first hit and sets `occluded`.
 template <bool kOcclusion>
@@ -251,22 +261,12 @@ inline void intersect_leaf_single(const TriRecord* leaf, std::uint32_t count, co
     return;
   }
 #if RTC_ISA_WIDTH >= 8
-  if (count > 4) {
-    for (std::uint32_t first = 0; first < count; first += 8) {
-      if (intersect_lanes<8, kOcclusion>(leaf, first, count, ray, hit)) {
-        occluded = vbool<1>(true);
-        return;
-      }
-    }
-    return;
-  }
+  const bool found = count > 4 ? intersect_leaf_lanes<8, kOcclusion>(leaf, count, ray, hit)
+                               : intersect_leaf_lanes<4, kOcclusion>(leaf, count, ray, hit);
+#else
+  const bool found = intersect_leaf_lanes<4, kOcclusion>(leaf, count, ray, hit);
 #endif
-  for (std::uint32_t first = 0; first < count; first += 4) {
-    if (intersect_lanes<4, kOcclusion>(leaf, first, count, ray, hit)) {
-      occluded = vbool<1>(true);
-      return;
-    }
-  }
+  if (found) occluded = vbool<1>(true);
 }
 
 /// |x| (clears the sign bit, also of -0).
@@ -423,6 +423,52 @@ inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
   return r;
 }
 
+/// Lane i of a packet as a one-ray query: `fn(ray, hit, occluded)` runs on copies of the
+/// lane's ray and results, and what it finds is written back into the packet.
+template <int N, bool kOcclusion, class Fn>
+inline void on_lane(const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded, Fn&& fn) {
+  const RayPacket<1> r = lane_ray(ray, i);
+  HitPacket<1> h{0.0f, 0.0f, 0.0f, -1};  // occlusion queries leave `hit` alone
+  if constexpr (!kOcclusion) h = HitPacket<1>{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
+  vbool<1> occ(occluded.lane(i));
+  fn(r, h, occ);
+  if constexpr (kOcclusion) {
+    if (occ.m) occluded |= vbool<N>::from_bits(1u << i);
+  } else if (h.prim.v != hit.prim.lane(i)) {  // a new hit is always another triangle
+    hit.t.set_lane(i, h.t.v);
+    hit.beta.set_lane(i, h.beta.v);
+    hit.gamma.set_lane(i, h.gamma.v);
+    hit.prim.set_lane(i, h.prim.v);
+  }
+}
+
+/// A leaf's triangles tested side by side for one ray (intersect_leaf_single), where
+/// that applies: always for a single ray with Wald's test, and for a packet with Wald's test
+/// that reaches the leaf with one live lane (a divergent packet's lanes part ways lower in the
+/// tree), whose ray alone then beats testing the triangles one by one for the whole packet.
+/// Two or more lanes each alone measured slower (trace_experiments.md). Returns false where
+/// it does not apply: the caller tests the triangles one by one.
+template <int N, bool kOcclusion, template <int> class Test>
+inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, const RayPacket<N>& ray,
+                                    vbool<N> active, HitPacket<N>& hit, vbool<N>& occluded) {
+  if constexpr (!std::is_same_v<Test<N>, WaldTest<N>>) {
+    return false;
+  } else if constexpr (N == 1) {
+    // A single ray's segment is never empty here (a child is entered only with a non-empty
+    // one), so the whole leaf is tested.
+    if (count != 0) intersect_leaf_single<kOcclusion>(leaf, count, ray, hit, occluded);
+    return true;
+  } else {
+    const unsigned live = bits(active);
+    if (count < 2 || live == 0 || (live & (live - 1)) != 0) return false;
+    on_lane<N, kOcclusion>(ray, __builtin_ctz(live), hit, occluded,
+                           [&](const RayPacket<1>& r, HitPacket<1>& h, vbool<1>& occ) {
+                             intersect_leaf_single<kOcclusion>(leaf, count, r, h, occ);
+                           });
+    return true;
+  }
+}
+
 /// Traverses the tree with the active lanes, which must share the sign of every direction
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
@@ -533,41 +579,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     }
 
     const TriRecord* leaf = records + node.prim_offset();
-    if constexpr (N == 1 && std::is_same_v<Test<N>, WaldTest<N>>) {
-      // A single ray's segment is never empty here (a child is entered only with a non-empty
-      // one), so the whole leaf is tested, several triangles at a time.
-      if (node.count != 0) intersect_leaf_single<kOcclusion>(leaf, node.count, ray, hit, occluded);
-    } else {
-      bool tested = false;
-      if constexpr (N > 1 && std::is_same_v<Test<N>, WaldTest<N>>) {
-        // One live lane (a divergent packet's lanes part ways lower in the tree): that ray
-        // alone, several triangles at a time, beats testing the triangles one by one for the
-        // whole packet. Two or more lanes each alone measured slower (trace_experiments.md).
-        const unsigned live = bits(active);
-        if (node.count >= 2 && live != 0 && (live & (live - 1)) == 0) {
-          const int i = __builtin_ctz(live);
-          const RayPacket<1> r = lane_ray(ray, i);
-          if constexpr (kOcclusion) {
-            HitPacket<1> unused{0.0f, 0.0f, 0.0f, -1};
-            vbool<1> occ(false);
-            intersect_leaf_single<true>(leaf, node.count, r, unused, occ);
-            if (occ.m) occluded |= vbool<N>::from_bits(live);
-          } else {
-            const std::int32_t prim = hit.prim.lane(i);
-            HitPacket<1> h{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), prim};
-            vbool<1> unused(false);
-            intersect_leaf_single<false>(leaf, node.count, r, h, unused);
-            if (h.prim.v != prim) {  // a new hit is always another triangle
-              hit.t.set_lane(i, h.t.v);
-              hit.beta.set_lane(i, h.beta.v);
-              hit.gamma.set_lane(i, h.gamma.v);
-              hit.prim.set_lane(i, h.prim.v);
-            }
-          }
-          tested = true;
-        }
-      }
-      for (std::uint32_t i = 0; !tested && i < node.count; ++i) {
+    if (!intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
+      for (std::uint32_t i = 0; i < node.count; ++i) {
         test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
         if constexpr (kOcclusion) {
           // A shadow ray stops at its first hit: occluded lanes test nothing more.
@@ -647,19 +660,9 @@ struct RayLanes {
 /// One lane of a packet traced alone (N = 1), its result written back into the packet.
 template <int N, bool kOcclusion, template <int> class Test>
 inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
-  const RayPacket<1> r = lane_ray(ray, i);
-  HitPacket<1> h{0.0f, 0.0f, 0.0f, -1};  // occlusion queries leave `hit` alone
-  if constexpr (!kOcclusion) h = HitPacket<1>{hit.t.lane(i), hit.beta.lane(i), hit.gamma.lane(i), hit.prim.lane(i)};
-  vbool<1> occ(occluded.lane(i));
-  traverse_coherent<1, kOcclusion, Test>(tree, r, vbool<1>(true), h, occ);
-  if constexpr (kOcclusion) {
-    if (occ.m) occluded |= vbool<N>::from_bits(1u << i);
-  } else {
-    hit.t.set_lane(i, h.t.v);
-    hit.beta.set_lane(i, h.beta.v);
-    hit.gamma.set_lane(i, h.gamma.v);
-    hit.prim.set_lane(i, h.prim.v);
-  }
+  on_lane<N, kOcclusion>(ray, i, hit, occluded, [&](const RayPacket<1>& r, HitPacket<1>& h, vbool<1>& occ) {
+    traverse_coherent<1, kOcclusion, Test>(tree, r, vbool<1>(true), h, occ);
+  });
 }
 
 /// Closest hit (kOcclusion = false) or any hit (true) for the active lanes. The traversal
