@@ -13,6 +13,8 @@
 #include <memory>
 #include <sstream>
 
+#include <immintrin.h>
+
 #include <fmt/format.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
@@ -21,6 +23,7 @@
 
 #include "common/accel/kd_tree.h"
 #include "common/base/error.h"
+#include "common/base/isa.h"
 #include "common/base/timer.h"
 
 namespace rtc {
@@ -108,7 +111,8 @@ class SahAxis {
     return c;
   }
 
- private:
+  // Public for the bit-mask stage's vector scan (scan_planes_avx512), which does cost()'s
+  // operations in its order, 8 planes at a time.
   float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
 };
 
@@ -308,12 +312,35 @@ struct Scratch {
   std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
   std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
   // The bit-mask stage (MaskBuilder): a subtree root's references and each axis's planes.
-  struct MaskPlane {
-    float pos;
-    std::uint64_t below;   // references that start (or lie) below the plane
-    std::uint64_t above;   // ... that end (or lie) above it
-    std::uint64_t planar;  // ... that lie in it
-    std::uint64_t owners;  // ... with an event at it (only those planes are candidates)
+  // One axis's planes in ascending position, as arrays (the vector scan loads 8 of each at
+  // once), followed by kMaskPad planes at +inf that no node takes.
+  struct MaskPlanes {
+    static constexpr std::size_t kMaskPad = 8;
+    std::vector<float> pos;
+    std::vector<std::uint64_t> below;   // references that start (or lie) below the plane
+    std::vector<std::uint64_t> above;   // ... that end (or lie) above it
+    std::vector<std::uint64_t> planar;  // ... that lie in it
+    std::vector<std::uint64_t> owners;  // ... with an event at it (only those planes are candidates)
+    std::size_t size = 0;               // planes before the padding
+    void clear() {
+      pos.clear();
+      below.clear();
+      above.clear();
+      planar.clear();
+      owners.clear();
+      size = 0;
+    }
+    void push(float p, std::uint64_t b, std::uint64_t a, std::uint64_t pl, std::uint64_t o) {
+      pos.push_back(p);
+      below.push_back(b);
+      above.push_back(a);
+      planar.push_back(pl);
+      owners.push_back(o);
+    }
+    void finish() {
+      size = pos.size();
+      for (std::size_t i = 0; i < kMaskPad; ++i) push(std::numeric_limits<float>::infinity(), 0, 0, 0, 0);
+    }
   };
   struct MaskTask {
     std::uint64_t mask;
@@ -322,7 +349,7 @@ struct Scratch {
     Aabb box;
   };
   std::vector<std::uint32_t> mask_refs;  // bit -> index into the block's triangle list
-  std::vector<MaskPlane> mask_planes[3];
+  MaskPlanes mask_planes[3];
   std::vector<MaskTask> mask_stack;
 };
 
@@ -331,9 +358,11 @@ std::uint32_t sort_key(float pos) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);  // unsigned order = float order
 }
 
-// Sorts events by position: LSD radix sort on 11-bit digits, skipping digits every key shares
-// (a small node's positions often share their top bits). Stable, so the result depends only
-// on the input order.
+// Sorts events by position: LSD radix sort over the key bits that differ between events (a
+// small node's positions share their top bits), in 1 to 4 digits of at most 11 bits, as many
+// and as wide as cost least for this many events (each digit costs a pass over the events and
+// one over its buckets: a small list sorts on narrow digits). Stable, so the result depends
+// only on the input order, whatever the digits.
 void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
   if (n < 64) {
     std::sort(ev, ev + n, [](const Event& x, const Event& y) {
@@ -341,26 +370,40 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
     });
     return;
   }
-  constexpr int kDigits = 3, kBits = 11, kBuckets = 1 << kBits;
-  std::array<std::array<std::uint32_t, kBuckets>, kDigits> count{};
+  const std::uint32_t key0 = sort_key(ev[0].pos);
+  std::uint32_t differ = 0;
+  for (std::size_t i = 0; i < n; ++i) differ |= sort_key(ev[i].pos) ^ key0;
+  if (differ == 0) return;
+  const int span = 32 - std::countl_zero(differ);  // bits [0, span) decide the order
+  constexpr int kMaxDigits = 4, kMaxBits = 11;
+  int digits = 0, width = 0;
+  std::size_t best = std::numeric_limits<std::size_t>::max();
+  for (int d = (span + kMaxBits - 1) / kMaxBits; d <= std::min(span, kMaxDigits); ++d) {
+    const int w = (span + d - 1) / d;
+    const std::size_t cost = static_cast<std::size_t>(d) * (n + (std::size_t{1} << w));
+    if (cost < best) best = cost, digits = d, width = w;
+  }
+  const std::uint32_t digit_mask = (1u << width) - 1u;
+  std::array<std::array<std::uint32_t, 1u << kMaxBits>, kMaxDigits> count;
+  for (int d = 0; d < digits; ++d) std::fill_n(count[d].begin(), std::size_t{1} << width, 0u);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t k = sort_key(ev[i].pos);
-    for (int d = 0; d < kDigits; ++d) ++count[d][(k >> (d * kBits)) & (kBuckets - 1)];
+    for (int d = 0; d < digits; ++d) ++count[d][(k >> (d * width)) & digit_mask];
   }
   if (buffer.size() < n) buffer.resize(n);
   Event* from = ev;
   Event* to = buffer.data();
-  for (int d = 0; d < kDigits; ++d) {
-    const std::uint32_t first = sort_key(from[0].pos) >> (d * kBits) & (kBuckets - 1);
-    if (count[d][first] == n) continue;  // every key has this digit
+  for (int d = 0; d < digits; ++d) {
+    const int shift = d * width;
+    if (count[d][(key0 >> shift) & digit_mask] == n) continue;  // every key has this digit
     std::uint32_t sum = 0;
-    for (std::uint32_t& c : count[d]) {
-      const std::uint32_t here = c;
-      c = sum;
+    for (std::uint32_t b = 0; b <= digit_mask; ++b) {
+      const std::uint32_t here = count[d][b];
+      count[d][b] = sum;
       sum += here;
     }
     for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t digit = sort_key(from[i].pos) >> (d * kBits) & (kBuckets - 1);
+      const std::uint32_t digit = (sort_key(from[i].pos) >> shift) & digit_mask;
       to[count[d][digit]++] = from[i];
     }
     std::swap(from, to);
@@ -403,6 +446,100 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
 // twice, once for it, and both copies build the same tree.
 [[gnu::always_inline]] inline int popcount64(std::uint64_t x) { return std::popcount(x); }
 
+// One axis's candidate planes for the node `mask` of the bit-mask stage: planes [from, ...)
+// that lie below `hi` and where one of the node's references has an event. A plane whose SAH
+// cost is below split.cost becomes the split (the lowest plane wins a tie, and an earlier
+// axis's split one of this axis), `chosen` its index.
+[[gnu::always_inline]] inline void scan_planes(const Scratch::MaskPlanes& planes, std::size_t from, float hi,
+                                               std::uint64_t mask, const SahAxis& sah, int axis, SplitChoice& split,
+                                               std::size_t& chosen) {
+  for (std::size_t i = from; planes.pos[i] < hi; ++i) {  // the padding at +inf ends it
+    if ((planes.owners[i] & mask) == 0) continue;
+    const std::size_t n_left = static_cast<std::size_t>(popcount64(planes.below[i] & mask));
+    const std::size_t n_right = static_cast<std::size_t>(popcount64(planes.above[i] & mask));
+    const std::size_t n_planar = static_cast<std::size_t>(popcount64(planes.planar[i] & mask));
+    const float pos = planes.pos[i];
+    const float cost_left = sah.cost(pos, n_left + n_planar, n_right);
+    const float cost_right = n_planar > 0 ? sah.cost(pos, n_left, n_right + n_planar) : cost_left;
+    const bool planar_left = cost_left <= cost_right;
+    const float cost = planar_left ? cost_left : cost_right;
+    if (cost < split.cost) {
+      split = SplitChoice{axis, pos, planar_left, cost};
+      chosen = i;
+    }
+  }
+}
+
+// Whether scan_planes_avx512 runs here: AVX-512 (F, DQ, VL) with VPOPCNTDQ.
+bool mask_scan_avx512() {
+  static const bool ok = cpu_supports(Isa::Avx512) && __builtin_cpu_supports("avx512vpopcntdq");
+  return ok;
+}
+
+// scan_planes 8 planes at a time: the three popcounts of each plane with VPOPCNTDQ and SahAxis::
+// cost()'s float operations in its order (separate multiplies and adds, as -ffp-contract=off
+// compiles the scalar code), so the same costs bit for bit. Planes that beat the split so far
+// are then taken in ascending order with scan_planes's comparison, so the same plane wins.
+// The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt")]] void scan_planes_avx512(
+    const Scratch::MaskPlanes& planes, std::size_t from, float hi, std::uint64_t mask, const SahAxis& sah, int axis,
+    SplitChoice& split, std::size_t& chosen) {
+  const __m512i m = _mm512_set1_epi64(static_cast<long long>(mask));
+  const __m256 v_hi = _mm256_set1_ps(hi);
+  const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
+  const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
+  const __m256 cross = _mm256_set1_ps(sah.cross_), two = _mm256_set1_ps(2.0f);
+  const __m256 k_t = _mm256_set1_ps(sah.k_t_), k_i = _mm256_set1_ps(sah.k_i_), bonus = _mm256_set1_ps(sah.bonus_);
+  const __m256 zero = _mm256_setzero_ps();
+  for (std::size_t i = from;; i += 8) {  // the padding at +inf ends it
+    const __m256 pos = _mm256_loadu_ps(planes.pos.data() + i);
+    const __mmask8 in_range = _mm256_cmp_ps_mask(pos, v_hi, _CMP_LT_OQ);
+    if (in_range == 0) return;
+    const __mmask8 owned = _mm512_test_epi64_mask(_mm512_loadu_si512(planes.owners.data() + i), m);
+    const __mmask8 valid = in_range & owned;
+    if (valid != 0) {
+      const __m512i n_left = _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.below.data() + i), m));
+      const __m512i n_right = _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.above.data() + i), m));
+      const __m512i n_planar =
+          _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.planar.data() + i), m));
+      const __mmask8 has_planar = _mm512_test_epi64_mask(n_planar, n_planar);
+      const __m256 area_left = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
+      const __m256 area_right = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(box_hi, pos), scale), perimeter)));
+      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
+      __m256 a = _mm512_maskz_cvtepi64_ps(0xFF, _mm512_add_epi64(n_left, n_planar));
+      __m256 b = _mm512_maskz_cvtepi64_ps(0xFF, n_right);
+      __m256 c = _mm256_add_ps(
+          k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
+      __mmask8 empty_side = _mm256_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm256_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
+      const __m256 cost_left = _mm256_mask_mul_ps(c, empty_side, c, bonus);
+      a = _mm512_maskz_cvtepi64_ps(0xFF, n_left);
+      b = _mm512_maskz_cvtepi64_ps(0xFF, _mm512_add_epi64(n_right, n_planar));
+      c = _mm256_add_ps(k_t,
+                        _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
+      empty_side = _mm256_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm256_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
+      const __m256 cost_right = _mm256_mask_blend_ps(has_planar, cost_left, _mm256_mask_mul_ps(c, empty_side, c, bonus));
+      const __mmask8 planar_left = _mm256_cmp_ps_mask(cost_left, cost_right, _CMP_LE_OQ);
+      const __m256 best = _mm256_mask_blend_ps(planar_left, cost_right, cost_left);
+      unsigned better = valid & _mm256_cmp_ps_mask(best, _mm256_set1_ps(split.cost), _CMP_LT_OQ);
+      if (better != 0) {
+        alignas(32) float costs[8], at[8];
+        _mm256_store_ps(costs, best);
+        _mm256_store_ps(at, pos);
+        for (; better != 0; better &= better - 1) {
+          const int j = std::countr_zero(better);
+          if (costs[j] < split.cost) {
+            split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
+            chosen = i + static_cast<std::size_t>(j);
+          }
+        }
+      }
+    }
+    if (in_range != 0xFF) return;
+  }
+}
+
 // The small-node stage (Zhou, Hou, Wang, Guo 2008, "Real-time KD-tree construction on
 // graphics hardware", section 4.3): a subtree of at most 64 references, handed over by
 // BlockBuilder with its sorted event lists, numbers its references 0..63 and turns each
@@ -433,7 +570,7 @@ class MaskBuilder {
     for (std::size_t b = 0; b < refs.size(); ++b) slot[refs[b]] = static_cast<std::uint32_t>(b);
     const std::uint64_t all = refs.size() == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << refs.size()) - 1;
     for (int axis = 0; axis < 3; ++axis) {
-      std::vector<Scratch::MaskPlane>& planes = s_.mask_planes[axis];
+      Scratch::MaskPlanes& planes = s_.mask_planes[axis];
       planes.clear();
       std::uint64_t below = 0, gone = 0;  // started (or planar) before the plane; ended at or before it
       for (std::size_t i = 0; i < len[axis];) {
@@ -453,11 +590,14 @@ class MaskBuilder {
           }
         }
         gone |= end | planar;
-        planes.push_back(Scratch::MaskPlane{pos, below, all & ~gone, planar, start | end | planar});
+        planes.push(pos, below, all & ~gone, planar, start | end | planar);
         below |= start | planar;
       }
+      planes.finish();
     }
-    if (__builtin_cpu_supports("popcnt")) {
+    if (ctx_.options.simd && mask_scan_avx512()) {
+      build_vector(index, all, box, depth);
+    } else if (__builtin_cpu_supports("popcnt")) {
       build_popcnt(index, all, box, depth);
     } else {
       build_portable(index, all, box, depth);
@@ -465,15 +605,22 @@ class MaskBuilder {
   }
 
  private:
+  static constexpr std::size_t kNone = ~std::size_t{0};
+
+  [[gnu::target("popcnt")]] void build_vector(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
+    build<true>(index, mask, box, depth);
+  }
   [[gnu::target("popcnt")]] void build_popcnt(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
-    build(index, mask, box, depth);
+    build<false>(index, mask, box, depth);
   }
   void build_portable(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
-    build(index, mask, box, depth);
+    build<false>(index, mask, box, depth);
   }
 
   // Depth first with an explicit stack (left child popped first), so children are placed
-  // exactly where BlockBuilder::node's recursion would place them.
+  // exactly where BlockBuilder::node's recursion would place them. kVector: each axis's planes
+  // are scanned by scan_planes_avx512, else by scan_planes; the two choose the same planes.
+  template <bool kVector>
   [[gnu::always_inline]] inline void build(std::size_t root, std::uint64_t root_mask, const Aabb& root_box,
                                            int root_depth) {
     const KdBuildOptions& options = ctx_.options;
@@ -489,42 +636,34 @@ class MaskBuilder {
       out_.max_depth = std::max(out_.max_depth, task.depth);
       const float area = scaled_area(box, ctx_.sah_scale);
       SplitChoice split;
-      const Scratch::MaskPlane* chosen = nullptr;
+      std::size_t chosen = kNone;  // the split's plane, in s_.mask_planes[split.axis]
       if (task.depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
         const float inv_area = 1.0f / area;
         for (int axis = 0; axis < 3; ++axis) {
           const float lo = box.lo[axis], hi = box.hi[axis];
           if (!(hi > lo)) continue;
           const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
-          const std::vector<Scratch::MaskPlane>& planes = s_.mask_planes[axis];
-          // The earliest axis, then the lowest plane, wins a tie (as in best_on_axis).
-          auto it = std::upper_bound(planes.begin(), planes.end(), lo,
-                                     [](float v, const Scratch::MaskPlane& q) { return v < q.pos; });
-          for (; it != planes.end() && it->pos < hi; ++it) {
-            if ((it->owners & mask) == 0) continue;
-            const std::size_t n_left = static_cast<std::size_t>(popcount64(it->below & mask));
-            const std::size_t n_right = static_cast<std::size_t>(popcount64(it->above & mask));
-            const std::size_t n_planar = static_cast<std::size_t>(popcount64(it->planar & mask));
-            const float cost_left = sah.cost(it->pos, n_left + n_planar, n_right);
-            const float cost_right = n_planar > 0 ? sah.cost(it->pos, n_left, n_right + n_planar) : cost_left;
-            const bool planar_left = cost_left <= cost_right;
-            const float cost = planar_left ? cost_left : cost_right;
-            if (cost < split.cost) {
-              split = SplitChoice{axis, it->pos, planar_left, cost};
-              chosen = &*it;
-            }
+          const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
+          const std::size_t from = static_cast<std::size_t>(
+              std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), lo) -
+              planes.pos.begin());
+          if constexpr (kVector) {
+            scan_planes_avx512(planes, from, hi, mask, sah, axis, split, chosen);
+          } else {
+            scan_planes(planes, from, hi, mask, sah, axis, split, chosen);
           }
         }
       }
-      if (chosen == nullptr || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
+      if (chosen == kNone || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
         leaf(task.index, mask, count, area);
         continue;
       }
       out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
       // Below the plane, or in it on the side the split chose, go left; above it, or in it
       // otherwise, right; straddlers both.
-      const std::uint64_t left = mask & (chosen->below | (split.planar_left ? chosen->planar : 0));
-      const std::uint64_t right = mask & (chosen->above | (split.planar_left ? 0 : chosen->planar));
+      const Scratch::MaskPlanes& plane = s_.mask_planes[split.axis];
+      const std::uint64_t left = mask & (plane.below[chosen] | (split.planar_left ? plane.planar[chosen] : 0));
+      const std::uint64_t right = mask & (plane.above[chosen] | (split.planar_left ? 0 : plane.planar[chosen]));
       const std::size_t first = out_.nodes.size();
       out_.nodes.resize(first + 2);
       KdNode inner;
