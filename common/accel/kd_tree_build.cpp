@@ -235,6 +235,13 @@ Aabb clamp_box(const Aabb& bounds, const Aabb& box) {
   return c;
 }
 
+// `b` with -0 written as +0 (x + 0 is +0 for either zero), as add_events writes positions.
+Aabb signless(Aabb b) {
+  b.lo += glm::vec3(0.0f);
+  b.hi += glm::vec3(0.0f);
+  return b;
+}
+
 // Bounds of triangle `tri` clipped to `box`, inside `bounds` (see TriangleClip).
 Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box, const Aabb& bounds) {
   const Aabb& t = ctx.tri_box[tri];
@@ -303,11 +310,17 @@ struct Scratch {
   std::vector<std::uint8_t> side;
   std::vector<Event> sort_buffer;
   std::vector<std::uint32_t> leaf;
-  std::vector<Aabb> bounds;                  // a block root's references, clipped
+  // Each reference's bounds in the node being split (clipped at the block's root, then where it
+  // straddles a split), with -0 written as +0 as in its events (add_events).
+  std::vector<Aabb> bounds;
+  struct Restore {
+    std::uint32_t ref;
+    Aabb before, right;  // its bounds in the parent; in the right child
+  };
+  std::vector<Restore> restore;  // the straddlers of the nodes on the path to the present one
   std::vector<std::uint32_t> straddlers;     // one split's references on both sides
-  std::vector<std::uint32_t> slot;           // a straddler's index in `straddlers`
-  std::vector<Aabb> current;                 // ... its bounds in the node being split
-  std::vector<Aabb> clip_left, clip_right;   // ... clipped to either child
+  std::vector<std::uint32_t> slot;           // a reference's bit in the bit-mask stage
+  std::vector<Aabb> clip_left, clip_right;   // a split's straddlers clipped to either child
   TriangleClip clip;
   std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
   std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
@@ -710,7 +723,7 @@ class BlockBuilder {
     bounds.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const Aabb& t = ctx_.tri_box[tris_[i]];
-      bounds[i] = ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box);
+      bounds[i] = signless(ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box));
     }
     for (int axis = 0; axis < 3; ++axis) {
       off[axis] = s_.arena.alloc(2 * n);
@@ -720,6 +733,7 @@ class BlockBuilder {
       sort_events(ev, m, s_.sort_buffer);
       len[axis] = m;
     }
+    s_.restore.clear();
     out_.nodes.assign(1, KdNode{});
     node(0, off, len, n, box, depth);
   }
@@ -804,14 +818,9 @@ class BlockBuilder {
       }
     }
     std::sort(straddlers.begin(), straddlers.end());  // new events independent of list order
-    std::vector<std::uint32_t>& slot = s_.slot;
-    if (slot.size() < tris_.size()) slot.resize(tris_.size());
-    for (std::size_t k = 0; k < straddlers.size(); ++k) slot[straddlers[k]] = static_cast<std::uint32_t>(k);
-    std::vector<Aabb>& current = s_.current;
-    current.assign(straddlers.size(), Aabb{});
+    std::vector<Aabb>& bounds = s_.bounds;
 
-    // One pass per axis keeps the one-sided references' events in order and reads the
-    // straddlers' present bounds.
+    // One pass per axis keeps the one-sided references' events in order.
     std::size_t n_kept_left[3], n_kept_right[3];
     std::size_t left_count = straddlers.size(), right_count = straddlers.size();
     for (int axis = 0; axis < 3; ++axis) {
@@ -834,11 +843,6 @@ class BlockBuilder {
           *r = e;
           l += s == kLeft;
           r += s == kRight;
-          if (s == kBoth) {
-            Aabb& c = current[slot[e.ref()]];
-            if (e.type() != kEnd) c.lo[axis] = e.pos;
-            if (e.type() != kStart) c.hi[axis] = e.pos;
-          }
         }
       } else {
         for (std::size_t i = 0; i < size; ++i) {
@@ -865,8 +869,9 @@ class BlockBuilder {
     TriangleClip& clip = s_.clip;
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
       const std::uint32_t tri = tris_[straddlers[k]];
-      const Aabb left_clamped = clamp_box(current[k], left_box);
-      const Aabb right_clamped = clamp_box(current[k], right_box);
+      const Aabb& current = bounds[straddlers[k]];
+      const Aabb left_clamped = clamp_box(current, left_box);
+      const Aabb right_clamped = clamp_box(current, right_box);
       if (clip.clip(ctx_, tri, box)) {
         clip.split(split.axis, p, left_clamped, right_clamped, clip_left[k], clip_right[k]);
       } else {
@@ -912,8 +917,19 @@ class BlockBuilder {
     inner.bits = (static_cast<std::uint32_t>(first) << 2) | static_cast<std::uint32_t>(split.axis);
     inner.split = p;
     out_.nodes[index] = inner;
+    // The straddlers' bounds in the left child, then in the right, then back to these.
+    const std::size_t restore = s_.restore.size();
+    for (std::size_t k = 0; k < straddlers.size(); ++k) {
+      const std::uint32_t ref = straddlers[k];
+      s_.restore.push_back(Scratch::Restore{ref, bounds[ref], signless(clip_right[k])});
+      bounds[ref] = signless(clip_left[k]);
+    }
+    const std::size_t restore_end = s_.restore.size();
     node(first, left_off, left_len, left_count, left_box, depth + 1);
+    for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].right;
     node(first + 1, right_off, right_len, right_count, right_box, depth + 1);
+    for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].before;
+    s_.restore.resize(restore);
     s_.arena.release(mark);
   }
 
