@@ -111,8 +111,8 @@ class SahAxis {
     return c;
   }
 
-  // Public for the bit-mask stage's vector scan (scan_planes_avx512), which does cost()'s
-  // operations in its order, 8 planes at a time.
+  // Public for the vector code (scan_planes_avx512, best_on_axis_avx512), which does cost()'s
+  // operations in its order, 8 or 16 planes at a time.
   float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
 };
 
@@ -424,15 +424,14 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
   if (from != ev) std::memcpy(ev, from, n * sizeof(Event));
 }
 
-// One sweep over an axis's sorted events (Wald & Havran 2006, section 4.2). The events may be
-// a window of the axis: `n_left` references start and `n_right` end beyond everything before it.
-SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::size_t size, std::size_t n_left,
-                         std::size_t n_right, const Aabb& box, int axis, float inv_area, float scale) {
-  SplitChoice best;
-  if (!(box.hi[axis] > box.lo[axis])) return best;
-  const SahAxis sah(options, box, axis, inv_area, scale);
-  const float lo = box.lo[axis], hi = box.hi[axis];
-  for (std::size_t i = 0; i < size;) {
+// The sweep over an axis's sorted events (Wald & Havran 2006, section 4.2), one group of equal
+// positions at a time from ev[i] until i reaches `until` (a group that goes past it is taken
+// whole); returns where it stopped, always at the start of a group. `n_left` references start
+// and `n_right` end at or beyond ev[i]; both are moved past the groups swept.
+[[gnu::always_inline]] inline std::size_t sweep_groups(const Event* ev, std::size_t i, std::size_t size,
+                                                       std::size_t until, const SahAxis& sah, int axis,
+                                                       std::size_t& n_left, std::size_t& n_right, SplitChoice& best) {
+  while (i < until) {
     const float pos = ev[i].pos;
     std::size_t n_end = 0, n_planar = 0, n_start = 0;
     for (; i < size && ev[i].pos == pos; ++i) {
@@ -442,7 +441,7 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
       n_start += t == kStart;
     }
     n_right -= n_planar + n_end;
-    if (pos > lo && pos < hi) {
+    if (pos > sah.lo_ && pos < sah.hi_) {
       // Without planar events both sides cost the same (most groups in most scenes).
       const float cost_left = sah.cost(pos, n_left + n_planar, n_right);
       const float cost_right = n_planar > 0 ? sah.cost(pos, n_left, n_right + n_planar) : cost_left;
@@ -452,6 +451,159 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
     }
     n_left += n_start + n_planar;
   }
+  return i;
+}
+
+// Whether best_on_axis_avx512 runs here (AVX-512 F, DQ, VL, BW, as the 16-wide tracer).
+bool sweep_avx512() {
+  static const bool ok = cpu_supports(Isa::Avx512);
+  return ok;
+}
+
+// sweep_groups 16 events at a time. An event ends its group where the next event's position
+// differs. Prefix sums over the 16 count the starts and planars before each event (what
+// n_left will be) and the ends and planars up to it (what n_right loses); a running maximum
+// over the group starts carries each group's first count to its end, where its SAH costs are
+// SahAxis::cost()'s float operations in its order (separate multiplies and adds, as
+// -ffp-contract=off compiles the scalar code), so the same bits. The groups that beat the split
+// so far are then taken in order with the scalar comparison, so the same group wins ties. A
+// group may run on into the next 16. Lanes past the end are NaN, which equals nothing.
+// The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitChoice best_on_axis_avx512(
+    const SahAxis& sah, const Event* ev, std::size_t size, std::size_t n_left, std::size_t n_right, int axis) {
+  SplitChoice best;
+  const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+  const __m512i odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+  const __m512i zero_i = _mm512_setzero_si512(), one = _mm512_set1_epi32(1), three = _mm512_set1_epi32(3);
+  const __m512i end_type = _mm512_set1_epi32(kEnd), planar_type = _mm512_set1_epi32(kPlanar);
+  const __m512i start_type = _mm512_set1_epi32(kStart), low10 = _mm512_set1_epi32(0x3FF);
+  const __m512 box_lo = _mm512_set1_ps(sah.lo_), box_hi = _mm512_set1_ps(sah.hi_);
+  const __m512 scale = _mm512_set1_ps(sah.scale_), perimeter = _mm512_set1_ps(sah.perimeter_);
+  const __m512 cross = _mm512_set1_ps(sah.cross_), two = _mm512_set1_ps(2.0f);
+  const __m512 k_t = _mm512_set1_ps(sah.k_t_), k_i = _mm512_set1_ps(sah.k_i_), bonus = _mm512_set1_ps(sah.bonus_);
+  const __m512 zero = _mm512_setzero_ps();
+  const float nan_value = std::numeric_limits<float>::quiet_NaN();
+  const __m512 nan = _mm512_set1_ps(nan_value);
+  // Running counts before the 16: starts and planars (n_left), planars, and n_right less the
+  // ends and planars so far; the n_left and planar count at the start of the open group.
+  int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
+  int group_left = 0, group_planar = 0;
+  float prev = nan_value;
+// Lane j gets lane j - K, zeros below.
+#define RTC_SHIFT_UP(v, K) _mm512_maskz_alignr_epi32(0xFFFF, (v), zero_i, 16 - (K))
+  for (std::size_t i = 0; i < size; i += 16) {
+    const std::size_t rest = size - i;
+    const __mmask16 live = rest >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << rest) - 1u);
+    const __m512i a = _mm512_maskz_loadu_epi64(static_cast<__mmask8>(live), ev + i);
+    const __m512i b = _mm512_maskz_loadu_epi64(static_cast<__mmask8>(live >> 8), ev + i + 8);
+    const __m512 pos = _mm512_mask_blend_ps(live, nan, _mm512_castsi512_ps(_mm512_permutex2var_epi32(a, even, b)));
+    const __m512i pos_i = _mm512_castps_si512(pos);
+    const float next_pos = rest > 16 ? ev[i + 16].pos : nan_value;
+    const __m512 next = _mm512_castsi512_ps(
+        _mm512_maskz_alignr_epi32(0xFFFF, _mm512_set1_epi32(std::bit_cast<int>(next_pos)), pos_i, 1));
+    const __m512 before = _mm512_castsi512_ps(
+        _mm512_maskz_alignr_epi32(0xFFFF, pos_i, _mm512_set1_epi32(std::bit_cast<int>(prev)), 15));
+    const __mmask16 group_end = live & _mm512_cmp_ps_mask(pos, next, _CMP_NEQ_UQ);
+    const __mmask16 group_start = live & _mm512_cmp_ps_mask(pos, before, _CMP_NEQ_UQ);
+    const __m512i type = _mm512_and_si512(_mm512_permutex2var_epi32(a, odd, b), three);
+    const __mmask16 is_planar = live & _mm512_cmpeq_epi32_mask(type, planar_type);
+    const __mmask16 sp = (live & _mm512_cmpeq_epi32_mask(type, start_type)) | is_planar;
+    const __mmask16 ep = (live & _mm512_cmpeq_epi32_mask(type, end_type)) | is_planar;
+    // Inclusive prefix sums over the 16 (at most 16 each): starts and planars in bits 0-9,
+    // planars in 10-19, ends and planars in 20-29.
+    __m512i sums = _mm512_add_epi32(
+        _mm512_add_epi32(_mm512_maskz_mov_epi32(sp, one), _mm512_maskz_mov_epi32(is_planar, _mm512_set1_epi32(1 << 10))),
+        _mm512_maskz_mov_epi32(ep, _mm512_set1_epi32(1 << 20)));
+    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 1));
+    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 2));
+    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 4));
+    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 8));
+    const __m512i sp_incl = _mm512_and_si512(sums, low10);
+    const __m512i planar_incl =
+        _mm512_add_epi32(_mm512_set1_epi32(planar_base), _mm512_and_si512(_mm512_maskz_srli_epi32(0xFFFF, sums, 10), low10));
+    const __m512i ep_incl = _mm512_maskz_srli_epi32(0xFFFF, sums, 20);
+    // Before each event: n_left and the planars so far; kept at the group starts and carried
+    // up by a running maximum (both only grow along the list).
+    const __m512i left_before =
+        _mm512_sub_epi32(_mm512_add_epi32(_mm512_set1_epi32(left_base), sp_incl), _mm512_maskz_mov_epi32(sp, one));
+    const __m512i planar_before = _mm512_sub_epi32(planar_incl, _mm512_maskz_mov_epi32(is_planar, one));
+    __m512i gl = _mm512_maskz_mov_epi32(group_start, left_before);
+    __m512i gp = _mm512_maskz_mov_epi32(group_start, planar_before);
+    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 1));
+    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 1));
+    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 2));
+    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 2));
+    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 4));
+    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 4));
+    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 8));
+    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 8));
+    gl = _mm512_maskz_max_epi32(0xFFFF, gl, _mm512_set1_epi32(group_left));
+    gp = _mm512_maskz_max_epi32(0xFFFF, gp, _mm512_set1_epi32(group_planar));
+    const __m512i left = gl;                                    // n_left before the group
+    const __m512i planar = _mm512_sub_epi32(planar_incl, gp);   // the group's planars (at its end)
+    const __m512i right = _mm512_sub_epi32(_mm512_set1_epi32(right_base), ep_incl);  // n_right after it
+    const __mmask16 inside = group_end & _mm512_cmp_ps_mask(pos, box_lo, _CMP_GT_OQ) &
+                             _mm512_cmp_ps_mask(pos, box_hi, _CMP_LT_OQ);
+    if (inside != 0) {
+      const __mmask16 has_planar = _mm512_test_epi32_mask(planar, planar);
+      const __m512 area_left = _mm512_mul_ps(
+          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale), perimeter)));
+      const __m512 area_right = _mm512_mul_ps(
+          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale), perimeter)));
+      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
+      __m512 na = _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar));
+      __m512 nb = _mm512_maskz_cvtepi32_ps(0xFFFF, right);
+      __m512 c = _mm512_add_ps(
+          k_t, _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, na), _mm512_mul_ps(area_right, nb))));
+      __mmask16 empty_side = _mm512_cmp_ps_mask(na, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(nb, zero, _CMP_EQ_OQ);
+      const __m512 cost_left = _mm512_mask_mul_ps(c, empty_side, c, bonus);
+      na = _mm512_maskz_cvtepi32_ps(0xFFFF, left);
+      nb = _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar));
+      c = _mm512_add_ps(k_t,
+                        _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, na), _mm512_mul_ps(area_right, nb))));
+      empty_side = _mm512_cmp_ps_mask(na, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(nb, zero, _CMP_EQ_OQ);
+      const __m512 cost_right =
+          _mm512_mask_blend_ps(has_planar, cost_left, _mm512_mask_mul_ps(c, empty_side, c, bonus));
+      const __mmask16 planar_left = _mm512_cmp_ps_mask(cost_left, cost_right, _CMP_LE_OQ);
+      const __m512 cost = _mm512_mask_blend_ps(planar_left, cost_right, cost_left);
+      const __mmask16 better = inside & _mm512_cmp_ps_mask(cost, _mm512_set1_ps(best.cost), _CMP_LT_OQ);
+      if (better != 0) {
+        alignas(64) float costs[16];
+        _mm512_store_ps(costs, cost);
+        for (unsigned m = better; m != 0; m &= m - 1) {
+          const int j = std::countr_zero(m);
+          if (costs[j] < best.cost) {
+            best = SplitChoice{axis, ev[i + static_cast<std::size_t>(j)].pos, ((planar_left >> j) & 1u) != 0, costs[j]};
+          }
+        }
+      }
+    }
+    // The open group's counts from the masks, not from gl and gp: the next 16 need not wait
+    // for this one's running maximum.
+    if (group_start != 0) {
+      const unsigned before_last = (1u << (31 - std::countl_zero(static_cast<unsigned>(group_start)))) - 1u;
+      group_left = left_base + std::popcount(sp & before_last);
+      group_planar = planar_base + std::popcount(is_planar & before_last);
+    }
+    left_base += std::popcount(static_cast<unsigned>(sp));
+    planar_base += std::popcount(static_cast<unsigned>(is_planar));
+    right_base -= std::popcount(static_cast<unsigned>(ep));
+    if (rest > 16) prev = ev[i + 15].pos;
+  }
+#undef RTC_SHIFT_UP
+  return best;
+}
+
+// One sweep over an axis's sorted events. The events may be a window of the axis: `n_left`
+// references start and `n_right` end beyond everything before it. With options.simd, 16 events
+// at a time where the CPU has AVX-512; the same split either way.
+SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::size_t size, std::size_t n_left,
+                         std::size_t n_right, const Aabb& box, int axis, float inv_area, float scale) {
+  if (!(box.hi[axis] > box.lo[axis])) return SplitChoice{};
+  const SahAxis sah(options, box, axis, inv_area, scale);
+  if (options.simd && sweep_avx512()) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
+  SplitChoice best;
+  sweep_groups(ev, 0, size, size, sah, axis, n_left, n_right, best);
   return best;
 }
 
