@@ -138,9 +138,10 @@ struct KdBuildOptions {
   /// Off: clamped boxes (faster builds). The renderer turns it off for
   /// trees rebuilt as frames go by (those of meshes that move) unless told otherwise (KdClip).
   bool clip = true;
-  /// Vector code in the build where the CPU has it (the event sweep's SAH, 16 events at a time
-  /// with AVX-512; the bit-mask stage's plane scan, 8 planes at a time with AVX-512 VPOPCNTDQ).
-  /// False: the scalar code, which builds the same tree (tested); for tests and A/B runs.
+  /// Vector code in the build where the CPU has it (with AVX-512: the event sweep's SAH 16
+  /// events at a time, the split of a node's event lists 8 at a time; with AVX-512 VPOPCNTDQ:
+  /// the bit-mask stage's plane scan, 8 planes at a time). False: the scalar code, which builds
+  /// the same tree (tested); for tests and A/B runs.
   bool simd = true;
 };
 

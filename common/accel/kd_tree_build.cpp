@@ -705,6 +705,58 @@ bool mask_scan_avx512() {
   }
 }
 
+// What split_events_avx512 wrote: events kept on either side, how many of them are not ends
+// (one per reference), and straddlers.
+struct SplitCounts {
+  std::size_t left = 0, right = 0, left_refs = 0, right_refs = 0, straddlers = 0;
+};
+
+// BlockBuilder::node's split of one axis's events by each reference's side, 8 events at a time:
+// the sides gathered (4 bytes read at each reference, so `side` has 3 bytes after its last),
+// the events kept on either side compressed into `left` and `right` in order (each store
+// writes 8 events, so both have room for 8 more than they keep). With clipping a straddler's
+// events go to neither list; without, one-sided references' events to their side and every
+// other to both. On the split axis the kept references are counted and, given `straddlers`,
+// the references whose start lies on both sides written there (in event order).
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitCounts split_events_avx512(
+    const Event* ev, std::size_t size, const std::uint8_t* side, bool clip, bool split_axis, Event* left,
+    Event* right, std::uint32_t* straddlers) {
+  SplitCounts out;
+  const __m256i low_byte = _mm256_set1_epi32(0xFF), left_side = _mm256_set1_epi32(kLeft);
+  const __m256i right_side = _mm256_set1_epi32(kRight), both_sides = _mm256_set1_epi32(kBoth);
+  const __m512i three = _mm512_set1_epi64(3), end_type = _mm512_set1_epi64(kEnd);
+  const __m512i start_type = _mm512_set1_epi64(kStart);
+  for (std::size_t i = 0; i < size; i += 8) {
+    const __mmask8 live = size - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (size - i)) - 1u);
+    const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
+    const __m512i ref = _mm512_maskz_srli_epi64(0xFF, v, 34);  // code >> 2, code in the high half
+    const __m256i where =
+        _mm256_and_si256(_mm512_mask_i64gather_epi32(_mm256_setzero_si256(), live, ref, side, 1), low_byte);
+    const __mmask8 to_left =
+        live & (clip ? _mm256_cmpeq_epi32_mask(where, left_side) : _mm256_cmpneq_epi32_mask(where, right_side));
+    const __mmask8 to_right =
+        live & (clip ? _mm256_cmpeq_epi32_mask(where, right_side) : _mm256_cmpneq_epi32_mask(where, left_side));
+    _mm512_storeu_si512(left + out.left, _mm512_maskz_compress_epi64(to_left, v));
+    _mm512_storeu_si512(right + out.right, _mm512_maskz_compress_epi64(to_right, v));
+    out.left += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(to_left)));
+    out.right += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(to_right)));
+    if (split_axis) {
+      const __m512i type = _mm512_and_si512(_mm512_maskz_srli_epi64(0xFF, v, 32), three);
+      const __mmask8 not_end = live & ~_mm512_cmpeq_epi64_mask(type, end_type);
+      out.left_refs += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(to_left & not_end)));
+      out.right_refs += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(to_right & not_end)));
+      if (straddlers != nullptr) {
+        const __mmask8 straddles =
+            live & _mm512_cmpeq_epi64_mask(type, start_type) & _mm256_cmpeq_epi32_mask(where, both_sides);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(straddlers + out.straddlers),
+                            _mm512_maskz_cvtepi64_epi32(0xFF, _mm512_maskz_compress_epi64(straddles, ref)));
+        out.straddlers += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(straddles)));
+      }
+    }
+  }
+  return out;
+}
+
 // The small-node stage (Zhou, Hou, Wang, Guo 2008, "Real-time KD-tree construction on
 // graphics hardware", section 4.3): a subtree of at most 64 references, handed over by
 // BlockBuilder with its sorted event lists, numbers its references 0..63 and turns each
@@ -869,7 +921,7 @@ class BlockBuilder {
   void run(const Aabb& box, int depth) {
     const std::size_t n = tris_.size();
     s_.arena.release(0);
-    if (s_.side.size() < n) s_.side.resize(n);
+    if (s_.side.size() < n + 3) s_.side.resize(n + 3);  // split_events_avx512 reads 4 bytes at each
     std::size_t off[3], len[3];
     std::vector<Aabb>& bounds = s_.bounds;
     bounds.resize(n);
@@ -961,27 +1013,40 @@ class BlockBuilder {
     // Perfect splits (Wald & Havran 2006, sections 4.3 and 5): each straddling reference is
     // clipped to both children's boxes and its events regenerated on every axis; the few new
     // events are sorted and merged into the lists the other references keep in order.
+    // The split axis's pass also collects the straddlers (with clipping) and counts each
+    // child's one-sided references; their order does not matter (sorted below).
+    const bool vector = ctx_.options.simd && sweep_avx512();
     std::vector<std::uint32_t>& straddlers = s_.straddlers;
     straddlers.clear();
-    if (ctx_.clip) {
-      const Event* ev = s_.arena.at(off[split.axis]);
-      for (std::size_t i = 0; i < len[split.axis]; ++i) {
-        if (ev[i].type() == kStart && side[ev[i].ref()] == kBoth) straddlers.push_back(ev[i].ref());
-      }
-    }
-    std::sort(straddlers.begin(), straddlers.end());  // new events independent of list order
-    std::vector<Aabb>& bounds = s_.bounds;
-
-    // One pass per axis keeps the one-sided references' events in order.
     std::size_t n_kept_left[3], n_kept_right[3];
-    std::size_t left_count = straddlers.size(), right_count = straddlers.size();
+    std::size_t left_refs = 0, right_refs = 0;
     for (int axis = 0; axis < 3; ++axis) {
       const Event* ev = s_.arena.at(off[axis]);
       const std::size_t size = len[axis];
       std::vector<Event>& kept_left = s_.kept_left[axis];
       std::vector<Event>& kept_right = s_.kept_right[axis];
-      if (kept_left.size() < size) kept_left.resize(size);
-      if (kept_right.size() < size) kept_right.resize(size);
+      if (kept_left.size() < size + 8) kept_left.resize(size + 8);  // room for a vector store's 8
+      if (kept_right.size() < size + 8) kept_right.resize(size + 8);
+      if (vector) {
+        const bool split_axis = axis == split.axis;
+        if (split_axis && ctx_.clip) straddlers.resize(size / 2 + 8);
+        const SplitCounts c = split_events_avx512(ev, size, side, ctx_.clip, split_axis, kept_left.data(),
+                                                  kept_right.data(),
+                                                  split_axis && ctx_.clip ? straddlers.data() : nullptr);
+        n_kept_left[axis] = c.left;
+        n_kept_right[axis] = c.right;
+        if (split_axis) {
+          if (ctx_.clip) straddlers.resize(c.straddlers);
+          left_refs = c.left_refs;
+          right_refs = c.right_refs;
+        }
+        continue;
+      }
+      if (axis == split.axis && ctx_.clip) {
+        for (std::size_t i = 0; i < size; ++i) {
+          if (ev[i].type() == kStart && side[ev[i].ref()] == kBoth) straddlers.push_back(ev[i].ref());
+        }
+      }
       Event* l = kept_left.data();
       Event* r = kept_right.data();
       // Every event is written to both lists and kept where its side says; a straddler's old
@@ -1009,10 +1074,13 @@ class BlockBuilder {
       n_kept_left[axis] = static_cast<std::size_t>(l - kept_left.data());
       n_kept_right[axis] = static_cast<std::size_t>(r - kept_right.data());
       if (axis == split.axis) {
-        for (std::size_t i = 0; i < n_kept_left[axis]; ++i) left_count += kept_left[i].type() != kEnd;
-        for (std::size_t i = 0; i < n_kept_right[axis]; ++i) right_count += kept_right[i].type() != kEnd;
+        for (std::size_t i = 0; i < n_kept_left[axis]; ++i) left_refs += kept_left[i].type() != kEnd;
+        for (std::size_t i = 0; i < n_kept_right[axis]; ++i) right_refs += kept_right[i].type() != kEnd;
       }
     }
+    std::sort(straddlers.begin(), straddlers.end());  // new events independent of list order
+    std::vector<Aabb>& bounds = s_.bounds;
+    const std::size_t left_count = straddlers.size() + left_refs, right_count = straddlers.size() + right_refs;
     std::vector<Aabb>& clip_left = s_.clip_left;
     std::vector<Aabb>& clip_right = s_.clip_right;
     clip_left.resize(straddlers.size());

@@ -345,10 +345,12 @@ TEST(KdTree, BitMaskStageVectorScanBuildsTheScalarScansTree) {
   }
 }
 
-TEST(KdTree, EventSweepVectorSahBuildsTheScalarSweepsTree) {
-  // KdBuildOptions::simd also picks the event sweep's SAH: 16 events at a time with AVX-512
-  // (groups of equal positions carried across the 16 by running counts) where the CPU has it,
-  // else one group at a time. The same costs bit for bit and the same tie rule, so node for
+TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
+  // KdBuildOptions::simd also picks the event sweep's vector code where the CPU has AVX-512:
+  // the SAH 16 events at a time (groups of equal positions carried across the 16 by running
+  // counts) instead of one group at a time, and the split of the event lists 8 at a time
+  // (sides gathered, kept events compressed, straddlers collected and references counted in the
+  // same pass). The same costs bit for bit, the same tie rule and the same lists, so node for
   // node the same tree: swept down to the leaves (no bit-mask stage), with clipping and
   // without; a mesh (shared vertices: groups of a few events), piles of coincident planar
   // triangles (groups of hundreds, across many 16s), signed zeros; the 70000-triangle soup
