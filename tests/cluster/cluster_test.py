@@ -493,11 +493,14 @@ def case_wire_formats_compression(c):
 
 
 def case_worker_killed_midframe(c):
-    scene = [*LARGE, "--tile", "16", *WHOLE]
-    ref = c.reference("ref", scene, "0-5", "png")
+    # 12 SLOWER frames, ~1 s on the two workers: the kill must land while the run goes on. (Six
+    # frames of LARGE at 1 spp had shrunk to ~0.14 s by 2026-11-23: the kill came 23 ms after the
+    # first frame and 0.11 s before the last, within one poll of a busy CI machine.)
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
+    ref = c.reference("ref", scene, "0-11", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-5", "--out",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-11", "--out",
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats,
                                                 "--min-workers", "2"])
     keeper = c.start_worker("keeper", addr, 1)
@@ -515,14 +518,15 @@ def case_worker_killed_midframe(c):
     expect_exit(master, 0, 90, "finish every frame with the remaining worker")
     expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
     frames, _ = read_stats(stats)
-    if sorted(f["frame"] for f in frames) != list(range(0, 6)):
-        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-5")
-    c.expect_frames_equal(out, "m", ref, range(0, 6), "png")
+    if sorted(f["frame"] for f in frames) != list(range(0, 12)):
+        fail(f"stats JSON has frames {[f['frame'] for f in frames]}, expected 0-11")
+    c.expect_frames_equal(out, "m", ref, range(0, 12), "png")
 
 
 def case_worker_joins_midrun(c):
-    # 16 frames, ~2 s with one worker: the second one joins well before the end.
-    scene = [*SLOW, "--tile", "16", *WHOLE]
+    # 16 SLOWER frames, ~3 s with one worker: the second one joins well before the end. (With
+    # SLOW the run had shrunk to ~0.6 s by 2026-11-23.)
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
     ref = c.reference("ref", scene, "0-15", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
