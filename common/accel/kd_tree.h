@@ -120,12 +120,13 @@ struct KdBuildOptions {
   float empty_bonus = 0.2f;        ///< cost reduction for splits that cut off empty space
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
   int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves
-  /// Subtrees of at most this many references (0 to 64) are built with bit masks over their
-  /// references (Zhou, Hou, Wang, Guo 2008, section 4.3): each node's SAH counts are popcounts
-  /// against masks computed once at the subtree's root. The same SAH and planes as the event
-  /// sweep except that straddling triangles are not clipped again below that root (the tree is
-  /// identical with clip off). 0: the event sweep down to the leaves.
-  int mask_below = 64;
+  /// Subtrees of at most this many references (0 to 256: one to four 64-bit words) are built
+  /// with bit masks over their references (Zhou, Hou, Wang, Guo 2008, section 4.3): each node's
+  /// SAH counts are popcounts against masks computed once at the subtree's root. The same SAH
+  /// and planes as the event sweep except that straddling triangles are not clipped again below
+  /// that root (the tree is identical with clip off). 0: the event sweep down to the leaves.
+  /// -1 (the default): effective_mask_below().
+  int mask_below = -1;
   int threads = 0;                 ///< 0: all cores (TBB's default)
   /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
   /// references are the same either way (the same triangles are left out as degenerate).
@@ -143,6 +144,13 @@ struct KdBuildOptions {
   /// the bit-mask stage's plane scan, 8 planes at a time). False: the scalar code, which builds
   /// the same tree (tested); for tests and A/B runs.
   bool simd = true;
+
+  /// mask_below with -1 resolved. With clipping 64: larger bit-mask subtrees lose the clipping
+  /// below their roots, and at 128 spd-tree's 16-wide primary rays were 0.95x (builds 0.90x,
+  /// tests/bench/results/kd_mask128.md; at 256 builds 0.82x, primary rays 0.94x on spd-tree,
+  /// spd-rings and spd-gears, kd_mask256.md). Without clipping 256: the masks then build the
+  /// sweep's tree exactly, in 0.81-0.95x the time of 64 on the big shared scenes.
+  [[nodiscard]] int effective_mask_below() const { return mask_below >= 0 ? mask_below : (clip ? 64 : 256); }
 };
 
 /// Whether the renderer's trees clip straddling triangles (KdBuildOptions::clip). Auto: on for

@@ -2,9 +2,9 @@
 // (Shevtsov, Soupikov, Kapustin 2007, section 3), binned and partitioned in parallel near the
 // root; subtrees of at most a few thousand references take the exact O(N log N) event sweep of
 // Wald & Havran 2006 in flat per-thread buffers, with straddling triangles clipped to each
-// child ("perfect splits", section 4.3); subtrees of at most 64 references finish with the same
-// SAH over bit masks of their references (Zhou, Hou, Wang, Guo 2008, section 4.3), without
-// further clipping. Parallel over subtrees (TBB).
+// child ("perfect splits", section 4.3); subtrees of at most 64 references (256 without
+// clipping) finish with the same SAH over bit masks of their references (Zhou, Hou, Wang, Guo
+// 2008, section 4.3), without further clipping. Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -56,6 +56,9 @@ struct SplitChoice {
 // same time but up to 9% more SAH (spd-balls-s3); 16384 or 65536 gain no quality.
 constexpr int kBins = 256;
 constexpr std::size_t kExactBelow = 4096;
+// The most references the bit-mask stage (MaskBuilder) takes: two 64-bit words.
+constexpr int kMaskWords = 4;
+constexpr std::size_t kMaxMaskRefs = 64 * kMaskWords;
 
 // What every node of one build shares. In the binned top levels a reference's bounds in a
 // node are its triangle's bounds clamped to the node's box; in the exact sweep they are the
@@ -70,7 +73,7 @@ struct BuildContext {
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
   float sah_scale = 1.0f;       // see sah_scale_for()
   bool clip = true;             // KdBuildOptions::clip
-  std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most 64
+  std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most kMaxMaskRefs
 };
 
 // SAH areas are computed with every length multiplied by this power of two: 1 for scenes whose
@@ -303,6 +306,43 @@ class EventArena {
   std::size_t size_ = 0, capacity_ = 0;
 };
 
+// A set of at most 64 W references of the bit-mask stage (MaskBuilder), W words.
+template <int W>
+struct MaskBits {
+  std::uint64_t w[W] = {};
+  MaskBits operator&(const MaskBits& o) const {
+    MaskBits r;
+    for (int i = 0; i < W; ++i) r.w[i] = w[i] & o.w[i];
+    return r;
+  }
+  MaskBits operator|(const MaskBits& o) const {
+    MaskBits r;
+    for (int i = 0; i < W; ++i) r.w[i] = w[i] | o.w[i];
+    return r;
+  }
+  MaskBits& operator|=(const MaskBits& o) { return *this = *this | o; }
+  [[nodiscard]] MaskBits and_not(const MaskBits& o) const {  // *this & ~o
+    MaskBits r;
+    for (int i = 0; i < W; ++i) r.w[i] = w[i] & ~o.w[i];
+    return r;
+  }
+  [[nodiscard]] bool none() const {
+    std::uint64_t any = 0;
+    for (int i = 0; i < W; ++i) any |= w[i];
+    return any == 0;
+  }
+  void set(std::uint32_t bit) { w[bit >> 6] |= std::uint64_t{1} << (bit & 63u); }
+  // The first `n` references.
+  static MaskBits first(std::size_t n) {
+    MaskBits r;
+    for (int i = 0; i < W; ++i) {
+      const std::size_t in_word = std::min<std::size_t>(n - std::min<std::size_t>(n, 64u * static_cast<unsigned>(i)), 64);
+      r.w[i] = in_word == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << in_word) - 1;
+    }
+    return r;
+  }
+};
+
 // One thread's buffers, reused by every block it sweeps (a block never waits on other tasks,
 // so one thread never interleaves two blocks).
 struct Scratch {
@@ -327,36 +367,63 @@ struct Scratch {
   // The bit-mask stage (MaskBuilder): a subtree root's references and each axis's planes.
   // One axis's planes in ascending position, as arrays (the vector scan loads 8 of each at
   // once), followed by kMaskPad planes at +inf that no node takes.
+  // A mask of up to 128 references is two words, word w holding references 64w..64w+63; a
+  // subtree of at most 64 uses word 0 only. Each word of a plane's masks has its own array.
   struct MaskPlanes {
     static constexpr std::size_t kMaskPad = 8;
     std::vector<float> pos;
-    std::vector<std::uint64_t> below;   // references that start (or lie) below the plane
-    std::vector<std::uint64_t> above;   // ... that end (or lie) above it
-    std::vector<std::uint64_t> planar;  // ... that lie in it
-    std::vector<std::uint64_t> owners;  // ... with an event at it (only those planes are candidates)
-    std::size_t size = 0;               // planes before the padding
-    void clear() {
-      pos.clear();
-      below.clear();
-      above.clear();
-      planar.clear();
-      owners.clear();
+    std::vector<std::uint64_t> below[kMaskWords];   // references that start (or lie) below the plane
+    std::vector<std::uint64_t> above[kMaskWords];   // ... that end (or lie) above it
+    std::vector<std::uint64_t> planar[kMaskWords];  // ... that lie in it
+    std::vector<std::uint64_t> owners[kMaskWords];  // ... with an event at it (only those planes are candidates)
+    std::size_t size = 0;                           // planes before the padding
+    // Room for `most` planes of W words and the padding; no planes yet.
+    template <int W>
+    void start(std::size_t most) {
+      const std::size_t n = most + kMaskPad;
+      if (pos.size() < n) pos.resize(n);
+      for (int w = 0; w < W; ++w) {
+        for (std::vector<std::uint64_t>* v : {&below[w], &above[w], &planar[w], &owners[w]}) {
+          if (v->size() < n) v->resize(n);
+        }
+      }
       size = 0;
     }
-    void push(float p, std::uint64_t b, std::uint64_t a, std::uint64_t pl, std::uint64_t o) {
-      pos.push_back(p);
-      below.push_back(b);
-      above.push_back(a);
-      planar.push_back(pl);
-      owners.push_back(o);
+    template <int W>
+    void push(float p, const MaskBits<W>& b, const MaskBits<W>& a, const MaskBits<W>& pl, const MaskBits<W>& o) {
+      pos[size] = p;
+      for (int w = 0; w < W; ++w) {
+        below[w][size] = b.w[w];
+        above[w][size] = a.w[w];
+        planar[w][size] = pl.w[w];
+        owners[w][size] = o.w[w];
+      }
+      ++size;
     }
+    template <int W>
     void finish() {
-      size = pos.size();
-      for (std::size_t i = 0; i < kMaskPad; ++i) push(std::numeric_limits<float>::infinity(), 0, 0, 0, 0);
+      for (std::size_t i = size; i < size + kMaskPad; ++i) {
+        pos[i] = std::numeric_limits<float>::infinity();
+        for (int w = 0; w < W; ++w) below[w][i] = above[w][i] = planar[w][i] = owners[w][i] = 0;
+      }
+    }
+    template <int W>
+    [[nodiscard]] MaskBits<W> below_at(std::size_t i) const { return at<W>(below, i); }
+    template <int W>
+    [[nodiscard]] MaskBits<W> above_at(std::size_t i) const { return at<W>(above, i); }
+    template <int W>
+    [[nodiscard]] MaskBits<W> planar_at(std::size_t i) const { return at<W>(planar, i); }
+    template <int W>
+    [[nodiscard]] MaskBits<W> owners_at(std::size_t i) const { return at<W>(owners, i); }
+    template <int W>
+    static MaskBits<W> at(const std::vector<std::uint64_t> (&words)[kMaskWords], std::size_t i) {
+      MaskBits<W> m;
+      for (int w = 0; w < W; ++w) m.w[w] = words[w][i];
+      return m;
     }
   };
   struct MaskTask {
-    std::uint64_t mask;
+    std::uint64_t mask[kMaskWords];
     std::uint32_t index;
     int depth;
     Aabb box;
@@ -610,19 +677,26 @@ SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::si
 // Popcount with the POPCNT instruction where the CPU has one: MaskBuilder::build is compiled
 // twice, once for it, and both copies build the same tree.
 [[gnu::always_inline]] inline int popcount64(std::uint64_t x) { return std::popcount(x); }
+template <int W>
+[[gnu::always_inline]] inline int popcount_bits(const MaskBits<W>& m) {
+  int n = 0;
+  for (int i = 0; i < W; ++i) n += popcount64(m.w[i]);
+  return n;
+}
 
 // One axis's candidate planes for the node `mask` of the bit-mask stage: planes [from, ...)
 // that lie below `hi` and where one of the node's references has an event. A plane whose SAH
 // cost is below split.cost becomes the split (the lowest plane wins a tie, and an earlier
 // axis's split one of this axis), `chosen` its index.
+template <int W>
 [[gnu::always_inline]] inline void scan_planes(const Scratch::MaskPlanes& planes, std::size_t from, float hi,
-                                               std::uint64_t mask, const SahAxis& sah, int axis, SplitChoice& split,
-                                               std::size_t& chosen) {
+                                               const MaskBits<W>& mask, const SahAxis& sah, int axis,
+                                               SplitChoice& split, std::size_t& chosen) {
   for (std::size_t i = from; planes.pos[i] < hi; ++i) {  // the padding at +inf ends it
-    if ((planes.owners[i] & mask) == 0) continue;
-    const std::size_t n_left = static_cast<std::size_t>(popcount64(planes.below[i] & mask));
-    const std::size_t n_right = static_cast<std::size_t>(popcount64(planes.above[i] & mask));
-    const std::size_t n_planar = static_cast<std::size_t>(popcount64(planes.planar[i] & mask));
+    if ((planes.owners_at<W>(i) & mask).none()) continue;
+    const std::size_t n_left = static_cast<std::size_t>(popcount_bits(planes.below_at<W>(i) & mask));
+    const std::size_t n_right = static_cast<std::size_t>(popcount_bits(planes.above_at<W>(i) & mask));
+    const std::size_t n_planar = static_cast<std::size_t>(popcount_bits(planes.planar_at<W>(i) & mask));
     const float pos = planes.pos[i];
     const float cost_left = sah.cost(pos, n_left + n_planar, n_right);
     const float cost_right = n_planar > 0 ? sah.cost(pos, n_left, n_right + n_planar) : cost_left;
@@ -646,10 +720,25 @@ bool mask_scan_avx512() {
 // compiles the scalar code), so the same costs bit for bit. Planes that beat the split so far
 // are then taken in ascending order with scan_planes's comparison, so the same plane wins.
 // The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
+// Planes i..i+7's popcounts of `words` & `m`, the words' counts summed.
+template <int W>
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt"), gnu::always_inline]] inline __m512i mask_counts(
+    const std::vector<std::uint64_t> (&words)[kMaskWords], std::size_t i, const __m512i* m) {
+  __m512i n = _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(words[0].data() + i), m[0]));
+  for (int w = 1; w < W; ++w) {
+    n = _mm512_add_epi64(n,
+                         _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(words[w].data() + i), m[w])));
+  }
+  return n;
+}
+
+// With two words (W = 2) each count is the sum of the two words' popcounts.
+template <int W>
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt")]] void scan_planes_avx512(
-    const Scratch::MaskPlanes& planes, std::size_t from, float hi, std::uint64_t mask, const SahAxis& sah, int axis,
-    SplitChoice& split, std::size_t& chosen) {
-  const __m512i m = _mm512_set1_epi64(static_cast<long long>(mask));
+    const Scratch::MaskPlanes& planes, std::size_t from, float hi, const MaskBits<W>& mask, const SahAxis& sah,
+    int axis, SplitChoice& split, std::size_t& chosen) {
+  __m512i m[W];
+  for (int w = 0; w < W; ++w) m[w] = _mm512_set1_epi64(static_cast<long long>(mask.w[w]));
   const __m256 v_hi = _mm256_set1_ps(hi);
   const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
   const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
@@ -660,13 +749,13 @@ bool mask_scan_avx512() {
     const __m256 pos = _mm256_loadu_ps(planes.pos.data() + i);
     const __mmask8 in_range = _mm256_cmp_ps_mask(pos, v_hi, _CMP_LT_OQ);
     if (in_range == 0) return;
-    const __mmask8 owned = _mm512_test_epi64_mask(_mm512_loadu_si512(planes.owners.data() + i), m);
+    __mmask8 owned = _mm512_test_epi64_mask(_mm512_loadu_si512(planes.owners[0].data() + i), m[0]);
+    for (int w = 1; w < W; ++w) owned |= _mm512_test_epi64_mask(_mm512_loadu_si512(planes.owners[w].data() + i), m[w]);
     const __mmask8 valid = in_range & owned;
     if (valid != 0) {
-      const __m512i n_left = _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.below.data() + i), m));
-      const __m512i n_right = _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.above.data() + i), m));
-      const __m512i n_planar =
-          _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(planes.planar.data() + i), m));
+      const __m512i n_left = mask_counts<W>(planes.below, i, m);
+      const __m512i n_right = mask_counts<W>(planes.above, i, m);
+      const __m512i n_planar = mask_counts<W>(planes.planar, i, m);
       const __mmask8 has_planar = _mm512_test_epi64_mask(n_planar, n_planar);
       const __m256 area_left = _mm256_mul_ps(
           two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
@@ -758,12 +847,12 @@ struct SplitCounts {
 }
 
 // The small-node stage (Zhou, Hou, Wang, Guo 2008, "Real-time KD-tree construction on
-// graphics hardware", section 4.3): a subtree of at most 64 references, handed over by
-// BlockBuilder with its sorted event lists, numbers its references 0..63 and turns each
-// distinct event position into a plane with four masks (references below, above, in it, and
-// with an event at it). A node is then a mask: its SAH counts at a plane are popcounts of
-// the node's mask with the plane's, so a node costs a few instructions per plane and no
-// lists are split. This is the event sweep of BlockBuilder without clipping: the same
+// graphics hardware", section 4.3): a subtree of at most 256 references (one to four 64-bit
+// words), handed over by BlockBuilder with its sorted event lists, numbers its references and
+// turns each distinct event position into a plane with four masks (references below, above,
+// in it, and with an event at it). A node is then a mask: its SAH counts at a plane are
+// popcounts of the node's mask with the plane's, so a node costs a few instructions per plane
+// and word and no lists are split. This is the event sweep of BlockBuilder without clipping: the same
 // candidate planes (those where one of the node's references has an event), the same counts,
 // costs and ties, the same depth-first layout; only straddling triangles keep the bounds they
 // had at the subtree's root instead of being clipped to every node below it.
@@ -779,77 +868,102 @@ class MaskBuilder {
     for (std::size_t i = 0; i < len[0]; ++i) {
       if (ev[0][i].type() != kEnd) refs.push_back(ev[0][i].ref());
     }
-    RTC_DCHECK(refs.size() <= 64, "bit-mask stage: more than 64 references");
-    // Bits in ascending reference order, so a leaf's set bits list its triangles ascending.
-    std::sort(refs.begin(), refs.end());
-    std::vector<std::uint32_t>& slot = s_.slot;
-    if (slot.size() < tris_.size()) slot.resize(tris_.size());
-    for (std::size_t b = 0; b < refs.size(); ++b) slot[refs[b]] = static_cast<std::uint32_t>(b);
-    const std::uint64_t all = refs.size() == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << refs.size()) - 1;
-    for (int axis = 0; axis < 3; ++axis) {
-      Scratch::MaskPlanes& planes = s_.mask_planes[axis];
-      planes.clear();
-      std::uint64_t below = 0, gone = 0;  // started (or planar) before the plane; ended at or before it
-      for (std::size_t i = 0; i < len[axis];) {
-        const float pos = ev[axis][i].pos;
-        std::uint64_t start = 0, end = 0, planar = 0;
-        for (; i < len[axis] && ev[axis][i].pos == pos; ++i) {
-          const std::uint64_t bit = std::uint64_t{1} << slot[ev[axis][i].ref()];
-          switch (ev[axis][i].type()) {
-            case kStart:
-              start |= bit;
-              break;
-            case kEnd:
-              end |= bit;
-              break;
-            default:
-              planar |= bit;
-          }
-        }
-        gone |= end | planar;
-        planes.push(pos, below, all & ~gone, planar, start | end | planar);
-        below |= start | planar;
-      }
-      planes.finish();
-    }
-    if (ctx_.options.simd && mask_scan_avx512()) {
-      build_vector(index, all, box, depth);
-    } else if (__builtin_cpu_supports("popcnt")) {
-      build_popcnt(index, all, box, depth);
+    RTC_DCHECK(refs.size() <= kMaxMaskRefs, "bit-mask stage: too many references");
+    if (refs.size() <= 64) {
+      run_words<1>(index, ev, len, box, depth);
+    } else if (refs.size() <= 128) {
+      run_words<2>(index, ev, len, box, depth);
+    } else if (refs.size() <= 192) {
+      run_words<3>(index, ev, len, box, depth);
     } else {
-      build_portable(index, all, box, depth);
+      run_words<4>(index, ev, len, box, depth);
     }
   }
 
  private:
   static constexpr std::size_t kNone = ~std::size_t{0};
 
-  [[gnu::target("popcnt")]] void build_vector(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
-    build<true>(index, mask, box, depth);
+  template <int W>
+  void run_words(std::size_t index, const Event* const ev[3], const std::size_t len[3], const Aabb& box, int depth) {
+    using Bits = MaskBits<W>;
+    std::vector<std::uint32_t>& refs = s_.mask_refs;
+    // Bits in ascending reference order, so a leaf's set bits list its triangles ascending.
+    std::sort(refs.begin(), refs.end());
+    std::vector<std::uint32_t>& slot = s_.slot;
+    if (slot.size() < tris_.size()) slot.resize(tris_.size());
+    for (std::size_t b = 0; b < refs.size(); ++b) slot[refs[b]] = static_cast<std::uint32_t>(b);
+    const Bits all = Bits::first(refs.size());
+    for (int axis = 0; axis < 3; ++axis) {
+      Scratch::MaskPlanes& planes = s_.mask_planes[axis];
+      planes.start<W>(len[axis]);
+      Bits below, gone;  // started (or planar) before the plane; ended at or before it
+      for (std::size_t i = 0; i < len[axis];) {
+        const float pos = ev[axis][i].pos;
+        Bits start, end, planar;
+        for (; i < len[axis] && ev[axis][i].pos == pos; ++i) {
+          const std::uint32_t bit = slot[ev[axis][i].ref()];
+          switch (ev[axis][i].type()) {
+            case kStart:
+              start.set(bit);
+              break;
+            case kEnd:
+              end.set(bit);
+              break;
+            default:
+              planar.set(bit);
+          }
+        }
+        gone |= end | planar;
+        planes.push<W>(pos, below, all.and_not(gone), planar, start | end | planar);
+        below |= start | planar;
+      }
+      planes.finish<W>();
+    }
+    if (ctx_.options.simd && mask_scan_avx512()) {
+      build_vector<W>(index, all, box, depth);
+    } else if (__builtin_cpu_supports("popcnt")) {
+      build_popcnt<W>(index, all, box, depth);
+    } else {
+      build_portable<W>(index, all, box, depth);
+    }
   }
-  [[gnu::target("popcnt")]] void build_popcnt(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
-    build<false>(index, mask, box, depth);
+
+  template <int W>
+  [[gnu::target("popcnt")]] void build_vector(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
+    build<true, W>(index, mask, box, depth);
   }
-  void build_portable(std::size_t index, std::uint64_t mask, const Aabb& box, int depth) {
-    build<false>(index, mask, box, depth);
+  template <int W>
+  [[gnu::target("popcnt")]] void build_popcnt(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
+    build<false, W>(index, mask, box, depth);
+  }
+  template <int W>
+  void build_portable(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
+    build<false, W>(index, mask, box, depth);
   }
 
   // Depth first with an explicit stack (left child popped first), so children are placed
   // exactly where BlockBuilder::node's recursion would place them. kVector: each axis's planes
   // are scanned by scan_planes_avx512, else by scan_planes; the two choose the same planes.
-  template <bool kVector>
-  [[gnu::always_inline]] inline void build(std::size_t root, std::uint64_t root_mask, const Aabb& root_box,
+  template <bool kVector, int W>
+  [[gnu::always_inline]] inline void build(std::size_t root, const MaskBits<W>& root_mask, const Aabb& root_box,
                                            int root_depth) {
+    using Bits = MaskBits<W>;
+    const auto task_of = [](const Bits& m, std::size_t index, int depth, const Aabb& box) {
+      Scratch::MaskTask t{{}, static_cast<std::uint32_t>(index), depth, box};
+      for (int w = 0; w < W; ++w) t.mask[w] = m.w[w];
+      return t;
+    };
     const KdBuildOptions& options = ctx_.options;
     std::vector<Scratch::MaskTask>& stack = s_.mask_stack;
     stack.clear();
-    stack.push_back(Scratch::MaskTask{root_mask, static_cast<std::uint32_t>(root), root_depth, root_box});
+    stack.push_back(task_of(root_mask, root, root_depth, root_box));
     while (!stack.empty()) {
       const Scratch::MaskTask task = stack.back();
       stack.pop_back();
-      const std::uint64_t mask = task.mask;
+      Bits mask;
+      for (int w = 0; w < W; ++w) mask.w[w] = task.mask[w];
       const Aabb& box = task.box;
-      const std::size_t count = static_cast<std::size_t>(popcount64(mask));
+      const std::size_t count = static_cast<std::size_t>(popcount_bits(mask));
       out_.max_depth = std::max(out_.max_depth, task.depth);
       const float area = scaled_area(box, ctx_.sah_scale);
       SplitChoice split;
@@ -865,22 +979,23 @@ class MaskBuilder {
               std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), lo) -
               planes.pos.begin());
           if constexpr (kVector) {
-            scan_planes_avx512(planes, from, hi, mask, sah, axis, split, chosen);
+            scan_planes_avx512<W>(planes, from, hi, mask, sah, axis, split, chosen);
           } else {
-            scan_planes(planes, from, hi, mask, sah, axis, split, chosen);
+            scan_planes<W>(planes, from, hi, mask, sah, axis, split, chosen);
           }
         }
       }
       if (chosen == kNone || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
-        leaf(task.index, mask, count, area);
+        leaf<W>(task.index, mask, count, area);
         continue;
       }
       out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
       // Below the plane, or in it on the side the split chose, go left; above it, or in it
       // otherwise, right; straddlers both.
       const Scratch::MaskPlanes& plane = s_.mask_planes[split.axis];
-      const std::uint64_t left = mask & (plane.below[chosen] | (split.planar_left ? plane.planar[chosen] : 0));
-      const std::uint64_t right = mask & (plane.above[chosen] | (split.planar_left ? 0 : plane.planar[chosen]));
+      const Bits in_plane = plane.planar_at<W>(chosen);
+      const Bits left = mask & (split.planar_left ? plane.below_at<W>(chosen) | in_plane : plane.below_at<W>(chosen));
+      const Bits right = mask & (split.planar_left ? plane.above_at<W>(chosen) : plane.above_at<W>(chosen) | in_plane);
       const std::size_t first = out_.nodes.size();
       out_.nodes.resize(first + 2);
       KdNode inner;
@@ -891,15 +1006,20 @@ class MaskBuilder {
       left_box.hi[split.axis] = split.pos;
       right_box.lo[split.axis] = split.pos;
       const int depth = task.depth + 1;
-      stack.push_back(Scratch::MaskTask{right, static_cast<std::uint32_t>(first + 1), depth, right_box});
-      stack.push_back(Scratch::MaskTask{left, static_cast<std::uint32_t>(first), depth, left_box});
+      stack.push_back(task_of(right, first + 1, depth, right_box));
+      stack.push_back(task_of(left, first, depth, left_box));
     }
   }
 
-  void leaf(std::size_t index, std::uint64_t mask, std::size_t count, float area) {
+  template <int W>
+  void leaf(std::size_t index, const MaskBits<W>& mask, std::size_t count, float area) {
     std::vector<std::uint32_t>& local = s_.leaf;
     local.clear();
-    for (std::uint64_t m = mask; m != 0; m &= m - 1) local.push_back(s_.mask_refs[std::countr_zero(m)]);
+    for (int w = 0; w < W; ++w) {
+      for (std::uint64_t m = mask.w[w]; m != 0; m &= m - 1) {
+        local.push_back(s_.mask_refs[64u * static_cast<unsigned>(w) + static_cast<unsigned>(std::countr_zero(m))]);
+      }
+    }
     out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
   }
 
@@ -1636,7 +1756,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (max_depth <= 0) max_depth = static_cast<int>(8.0 + 1.3 * std::log2(static_cast<double>(count)));
   max_depth = std::clamp(max_depth, 1, 60);
 
-  const std::size_t mask_below = static_cast<std::size_t>(std::clamp(options.mask_below, 0, 64));
+  const std::size_t mask_below =
+      static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
   BuildContext ctx{options,      tri_box,  positions,  triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
                    options.clip, mask_below};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);

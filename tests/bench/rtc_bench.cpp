@@ -237,9 +237,9 @@ int run(int argc, char** argv) {
   rtc::add_kd_clip_option(app, kd_clip_text);
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
   app.add_option("--kd-mask-below", kd_options.mask_below,
-                 "subtrees of at most this many references built with bit masks, not clipped below their root (0: "
-                 "the event sweep to the leaves)")
-      ->check(CLI::Range(0, 64))
+                 "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
+                 "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
+      ->check(CLI::Range(-1, 256))
       ->capture_default_str();
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
@@ -369,7 +369,7 @@ int run(int argc, char** argv) {
                          {"kd_clip", kd_options.clip},
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_intersection_cost", kd_options.intersection_cost},
-                         {"kd_mask_below", kd_options.mask_below},
+                         {"kd_mask_below", kd_options.effective_mask_below()},
                          {"reps", reps}};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;

@@ -165,9 +165,11 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
   // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
   for (const Soup& s :
        {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000)}) {
-    // The bit-mask stage from 64 references (the default), from 17, and not at all.
+    // The bit-mask stage from 256 references (four words), 130 (three), 64 (one), 17, and not
+    // at all.
     for (const auto& [clip, mask_below] :
-         {std::pair{true, 64}, std::pair{true, 17}, std::pair{true, 0}, std::pair{false, 64}, std::pair{false, 0}}) {
+         {std::pair{true, 256}, std::pair{true, 130}, std::pair{true, 64}, std::pair{true, 17}, std::pair{true, 0},
+          std::pair{false, 256}, std::pair{false, 64}, std::pair{false, 0}}) {
       KdBuildOptions o;
       o.clip = clip;
       o.mask_below = mask_below;
@@ -278,13 +280,15 @@ Soup signed_zero_cells() {
 TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   // Without clipping the bit masks are the event sweep by other means: the same planes, counts,
   // costs and ties, so node for node the same tree.
-  // Soup 19 has 64 triangles, so its root is one full 64-bit mask.
+  // Soup 19 has 64 triangles, so its root is one full 64-bit mask; soups 23 and 31 have 128 and
+  // 256, two and four full words; soup 37 has 150, three words, the last partly used.
   for (const auto& [s, traversal_cost] :
        {std::pair{random_soup(7, 5000, 0.05f), 3.0f}, std::pair{sphere_and_grid(24), 3.0f},
         std::pair{sliver_fan(13, 3000), 3.0f}, std::pair{planar_piles(17, 3000), 3.0f},
-        std::pair{random_soup(19, 64, 0.5f), 3.0f}, std::pair{random_soup(29, 300, 0.5f), 1.0f},
-        std::pair{signed_zero_cells(), 0.1f}}) {
-    for (int mask_below : {64, 33, 8}) {
+        std::pair{random_soup(19, 64, 0.5f), 3.0f}, std::pair{random_soup(23, 128, 0.5f), 3.0f},
+        std::pair{random_soup(31, 256, 0.5f), 3.0f}, std::pair{random_soup(37, 150, 0.5f), 3.0f},
+        std::pair{random_soup(29, 300, 0.5f), 1.0f}, std::pair{signed_zero_cells(), 0.1f}}) {
+    for (int mask_below : {-1, 256, 192, 150, 128, 100, 64, 33, 8}) {  // -1: 256 without clipping
       KdBuildOptions sweep;
       sweep.clip = false;
       sweep.mask_below = 0;
@@ -306,7 +310,7 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
     }
   }
   // With clipping the stage is seen to run: the slivers' straddlers keep their root bounds
-  // below 64 references, so that tree differs from the one clipped to the leaves.
+  // below the default threshold, so that tree differs from the one clipped to the leaves.
   const Soup fan = sliver_fan(13, 3000);
   KdBuildOptions sweep;
   sweep.mask_below = 0;
@@ -345,12 +349,16 @@ void expect_vector_build_matches_scalar(const std::vector<std::pair<Soup, float>
 TEST(KdTree, BitMaskStageVectorScanBuildsTheScalarScansTree) {
   // KdBuildOptions::simd picks the bit-mask stage's plane scan: 8 planes at a time with AVX-512
   // VPOPCNTDQ where the CPU has it, else one at a time. Same costs bit for bit and the same
-  // tie rule, so node for node the same tree, with clipping above the stage or without.
-  ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
-      {{random_soup(7, 5000, 0.05f), 3.0f}, {sphere_and_grid(24), 3.0f}, {sliver_fan(13, 3000), 3.0f},
-       {planar_piles(17, 3000), 3.0f}, {random_soup(19, 64, 0.5f), 3.0f}, {random_soup(29, 300, 0.5f), 1.0f},
-       {signed_zero_cells(), 0.1f}},
-      KdBuildOptions{}.mask_below));
+  // tie rule, so node for node the same tree, with clipping above the stage or without; with
+  // masks of one to four words (the default threshold, then 64 and 128).
+  for (int mask_below : {KdBuildOptions{}.mask_below, 64, 128}) {
+    SCOPED_TRACE(testing::Message() << "mask below " << mask_below);
+    ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
+        {{random_soup(7, 5000, 0.05f), 3.0f}, {sphere_and_grid(24), 3.0f}, {sliver_fan(13, 3000), 3.0f},
+         {planar_piles(17, 3000), 3.0f}, {random_soup(19, 64, 0.5f), 3.0f}, {random_soup(31, 256, 0.5f), 3.0f},
+         {random_soup(37, 150, 0.5f), 3.0f}, {random_soup(29, 300, 0.5f), 1.0f}, {signed_zero_cells(), 0.1f}},
+        mask_below));
+  }
 }
 
 TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
@@ -627,7 +635,8 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
   for (const auto& [kt, ki, leaf, clip, mask] :
        {std::tuple{1.0f, 1.5f, 1, true, 64}, std::tuple{4.0f, 1.0f, 1, true, 64}, std::tuple{1.0f, 3.0f, 8, true, 64},
-        std::tuple{2.0f, 1.5f, 1, false, 64}, std::tuple{3.0f, 1.5f, 1, true, 0}, std::tuple{2.0f, 1.5f, 1, true, 9}}) {
+        std::tuple{2.0f, 1.5f, 1, false, 64}, std::tuple{3.0f, 1.5f, 1, true, 0}, std::tuple{2.0f, 1.5f, 1, true, 9},
+        std::tuple{1.0f, 1.5f, 1, true, 256}, std::tuple{2.0f, 1.0f, 1, true, 100}}) {
     KdBuildOptions o = with_test(watertight);
     o.traversal_cost = kt;
     o.intersection_cost = ki;
