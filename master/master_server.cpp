@@ -707,10 +707,12 @@ class Master {
       } else {
         queue_.open_frame(static_cast<int>(f.sequence));
       }
-      if (traced == 0) {
-        f.started = true;
-        f.started_at = Clock::now();
-      }
+      // The frame's clock starts with its first tile handed out (assign()); a frame that ends
+      // without one (nothing to trace, or its waiting tiles all kept) counts from its opening.
+      // Before 2026-11-23 such a frame with waiting tiles logged the time since the clock's
+      // epoch (71767457.6 ms in a temporal run).
+      f.started_at = Clock::now();
+      if (traced == 0) f.started = true;
       const OpenFrame& opened = frames_.emplace(f.sequence, std::move(f)).first->second;
       for (auto& [id, w] : workers_) {
         if (traced > 0 && w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);

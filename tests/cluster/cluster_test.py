@@ -1538,12 +1538,23 @@ def case_launch_local(c):
 TEMPORAL_SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "temporal", "scenes")
 
 
+def expect_frame_times_sane(tag, records, elapsed_s):
+    """Each frame's logged wall time lies between 0 and the whole run's (`elapsed_s`, timed by the
+    test around it). A frame that ended with no tile handed out (temporal coherence kept every
+    one) once logged the time since the clock's epoch: 71767457.6 ms."""
+    bad = [(f["sequence"], f["wall_ms"]) for f in records if not 0 <= f["wall_ms"] <= 1000 * elapsed_s]
+    if bad:
+        fail(f"{tag}: frame wall times outside 0-{1000 * elapsed_s:.0f} ms, the whole run's: (sequence, ms) {bad[:10]}")
+
+
 def temporal_run(c, tag, scene_args, frames, ext, workers, master_extra=(), render_extra=()):
     """The cluster with temporal coherence on against rtc-render tracing every frame whole: every
     frame bit-identical; returns the per-frame stats records."""
     ref = c.reference(f"{tag}-ref", [*scene_args, *render_extra], frames, ext, extra=("--temporal", "off"))
+    started = time.monotonic()
     out, records, _, master, _ = c.cluster_run(tag, scene_args, frames, ext, workers=workers, threads=1,
                                                master_extra=("--temporal", "on", *master_extra))
+    expect_frame_times_sane(tag, records, time.monotonic() - started)
     first, last = (int(x) for x in frames.split("-"))
     c.expect_frames_equal(out, "m", ref, range(first, last + 1), ext)
     records = sorted(records, key=lambda f: f["sequence"])
@@ -1584,15 +1595,17 @@ def case_temporal_exr(c):
 def case_temporal_worker_killed(c):
     """A worker SIGKILLed mid-run: its tiles (and the marks they would have sent) go to the
     others; every frame still bit-identical."""
-    # 2 samples a pixel and the kill after frame 0, so that nine frames are still to come when it
-    # lands (frames after the first trace a few tiles each and go by fast).
-    scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360", "--spp", "2"]
+    # The kill after frame 0, so that nine frames are still to come when it lands. Frames after
+    # the first trace a few tiles each and go by fast: at 2 samples a pixel frames 1-9 took
+    # ~0.12 s on 2026-11-23 and the kill landed ~0.07 s before the end; at 16 0.3-0.4 s before it.
+    scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360", "--spp", "16"]
     ref = c.reference("kill-ref", scene, "0-9", "png", extra=("--temporal", "off"))
     out = c.mkdir("kill")
     stats = c.path("kill-stats.json")
     master, addr, _ = c.start_master("kill-master", [*scene, "--out", os.path.join(out, "m_####.png"),
                                                      "--stats-json", stats, "--min-workers", "2",
                                                      "--temporal", "on", "--tiles-per-worker", "2"])
+    started = time.monotonic()
     victim = c.start_worker("kill-victim", addr, 1)
     keeper = c.start_worker("kill-keeper", addr, 1)
     expect_log(master, r"frame 0 \[seq 0\]", "frame 0 done", timeout=60, watch=[master])
@@ -1602,6 +1615,7 @@ def case_temporal_worker_killed(c):
     expect_exit(master, 0, 90, "finish every frame without the killed worker")
     expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
     c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
+    expect_frame_times_sane("kill", read_stats(stats)[0], time.monotonic() - started)
 
 
 CASES = {
