@@ -306,7 +306,8 @@ class EventArena {
   std::size_t size_ = 0, capacity_ = 0;
 };
 
-// A set of at most 64 W references of the bit-mask stage (MaskBuilder), W words.
+// A set of the bit-mask stage's references (MaskBuilder) in W 64-bit words: reference k is
+// bit k % 64 of word k / 64.
 template <int W>
 struct MaskBits {
   std::uint64_t w[W] = {};
