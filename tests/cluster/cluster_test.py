@@ -1198,7 +1198,7 @@ def case_soak(c):
         if now >= next_sample:
             m, a = proc_status(master.pid), proc_status(anchor.pid)
             if m and a:
-                samples.append((now - start, m[0], m[1], a[0], len(extras)))
+                samples.append((now - start, m[0], a[0], len(extras)))
             next_sample = now + 0.5
         if now - start < seconds - 4:  # the last seconds: no churn, so the end count is clean
             if now >= next_kill and extras:
@@ -1233,9 +1233,9 @@ def case_soak(c):
     early = [s for s in post if s[0] < seconds / 2]
     late = post[-len(post) // 3:]
     m_growth = med(x[1] for x in late) - med(x[1] for x in early)
-    a_growth = med(x[3] for x in late) - med(x[3] for x in early)
+    a_growth = med(x[2] for x in late) - med(x[2] for x in early)
     deciles = [post[i * (len(post) - 1) // 9] for i in range(10)]
-    curve = ", ".join(f"{t:.0f}s {m:.1f}/{a:.1f}" for t, m, _, a, _ in deciles)
+    curve = ", ".join(f"{t:.0f}s {m:.1f}/{a:.1f}" for t, m, a, _ in deciles)
     # The same fewest count over the looks at the end, when only the anchor was left. (Taken
     # from the 0.5 s memory samples, as before 2026-11-23, that was the fewest of a handful of
     # looks, and 1 of 6 local runs failed with 12 against 11: at a few hundred frames a second
