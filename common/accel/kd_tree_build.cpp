@@ -9,11 +9,14 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <new>
 #include <sstream>
 
 #include <immintrin.h>
+#include <sys/mman.h>
 
 #include <fmt/format.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -65,7 +68,7 @@ constexpr std::size_t kMaxMaskRefs = 64 * kMaskWords;
 // bounds of the triangle clipped to the node's box (clipped_bounds()).
 struct BuildContext {
   const KdBuildOptions& options;
-  const std::vector<Aabb>& tri_box;
+  const RawArray<Aabb>& tri_box;
   std::span<const glm::vec3> positions;
   std::span<const glm::uvec3> triangles;
   int max_depth = 0;
@@ -1633,6 +1636,15 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
 
 }  // namespace
 
+void* alloc_pages(std::size_t bytes, std::size_t align) {
+  constexpr std::size_t kHugePage = std::size_t{2} << 20;
+  if (bytes >= kHugePage) align = std::max(align, kHugePage);
+  void* p = std::aligned_alloc(align, (bytes + align - 1) / align * align);  // a multiple of align
+  if (p == nullptr) throw std::bad_alloc();
+  if (align >= kHugePage) ::madvise(p, (bytes + align - 1) / align * align, MADV_HUGEPAGE);
+  return p;
+}
+
 TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   // Computed in double, rounded once: the record is as exact as float storage allows.
   const glm::dvec3 A(a), B(b), C(c);
@@ -1692,9 +1704,9 @@ KdClip parse_kd_clip(std::string_view text) {
 std::string KdBuildStats::to_string() const {
   return fmt::format(
       "kd-tree: {} triangles ({} degenerate skipped) in {:.1f} ms, {} nodes, {} leaves ({} empty), "
-      "max depth {}, {:.2f} triangles per non-empty leaf, {} refs, SAH cost {:.2f}",
+      "max depth {}, {:.2f} triangles per non-empty leaf, {} refs, SAH cost {:.2f}, {:.1f} MiB",
       triangles, degenerate, build_ms, nodes, leaves, empty_leaves, max_depth, mean_tris_per_leaf, prim_refs,
-      sah_cost);
+      sah_cost, static_cast<double>(bytes) / (1024.0 * 1024.0));
 }
 
 KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
@@ -1711,8 +1723,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   KdTree tree;
   tree.stats_.triangles = triangles.size();
   tree.watertight_ = options.watertight;
-  tree.records_ = RawArray<TriRecord>(triangles.size());
-  std::vector<Aabb> tri_box(triangles.size());
+  // Records in the order given, each written once below; the tree keeps only their copies in
+  // leaf order (leaf_records_), made once the leaves are known.
+  RawArray<TriRecord> records(triangles.size());
+  RawArray<Aabb> tri_box(triangles.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const glm::uvec3 t = triangles[i];
@@ -1721,7 +1735,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
       const std::uint32_t id = ids.empty() ? static_cast<std::uint32_t>(i) : ids[i];
       RTC_CHECK(id < 0x7FFFFFFFu, "kd-tree: triangle id must be below 2^31 - 1 (hits carry it as int32)");
       const glm::vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
-      TriRecord& rec = tree.records_[i];
+      TriRecord& rec = records[i];
       rec = TriRecord{};  // every byte written (the array is not initialised)
       if (options.watertight) {
         rec.watertight = make_tri_verts(a, b, c);
@@ -1730,10 +1744,12 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
         rec.wald = make_tri_accel(a, b, c);
         rec.wald.id = id;
       }
+      Aabb& box = tri_box[i];
+      box = Aabb{};  // empty for a degenerate triangle
       if (rec.wald.k < 3) {  // valid in either format (TriRecord)
-        tri_box[i].extend(a);
-        tri_box[i].extend(b);
-        tri_box[i].extend(c);
+        box.extend(a);
+        box.extend(b);
+        box.extend(c);
       }
     }
   });
@@ -1777,13 +1793,16 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   tree.stats_.sah_cost = root_area > 0.0f ? cost_area / static_cast<double>(root_area) : 0.0;
   top.reset();
 
+  tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
   tree.leaf_records_ = RawArray<TriRecord>(tree.prim_refs_.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) tree.leaf_records_[i] = tree.records_[tree.prim_refs_[i]];
+    for (std::size_t i = range.begin(); i != range.end(); ++i) tree.leaf_records_[i] = records[tree.prim_refs_[i]];
   });
 
   tree.stats_.nodes = tree.nodes_.size();
   tree.stats_.prim_refs = tree.prim_refs_.size();
+  tree.stats_.bytes = tree.nodes_.size() * sizeof(KdNode) + tree.prim_refs_.size() * sizeof(std::uint32_t) +
+                      tree.leaf_records_.size() * sizeof(TriRecord);
   const std::uint64_t full = tree.stats_.leaves - tree.stats_.empty_leaves;
   tree.stats_.mean_tris_per_leaf = full > 0 ? static_cast<double>(tree.stats_.prim_refs) / static_cast<double>(full) : 0.0;
 

@@ -366,6 +366,7 @@ int run(int argc, char** argv) {
                          {"kd_tris_per_leaf", kd.mean_tris_per_leaf},
                          {"kd_sah_cost", kd.sah_cost},
                          {"kd_refs", kd.prim_refs},
+                         {"kd_bytes", kd.bytes},
                          {"kd_clip", kd_options.clip},
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_intersection_cost", kd_options.intersection_cost},

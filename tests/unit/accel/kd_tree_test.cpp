@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <cstdio>
 #include <limits>
@@ -102,8 +104,8 @@ Soup sphere_and_grid(int seg) {
 }
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
-  const std::uint32_t* r = tree.prim_refs().data() + leaf.prim_offset();
-  return std::any_of(r, r + leaf.count, [&](std::uint32_t ref) { return tree.records()[ref].wald.id == tri; });
+  const TriRecord* r = tree.leaf_records().data() + leaf.prim_offset();
+  return std::any_of(r, r + leaf.count, [&](const TriRecord& rec) { return rec.wald.id == tri; });
 }
 
 // Bounds of the triangle clipped to `box` in double (Sutherland-Hodgman; a point on a plane
@@ -189,6 +191,22 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
   }
 }
 
+TEST(KdTree, LargeArraysAreAlignedToHugePages) {
+  for (const std::size_t bytes : {std::size_t{48}, std::size_t{1} << 20, (std::size_t{2} << 20) - 16,
+                                  std::size_t{2} << 20, (std::size_t{3} << 20) + 48}) {
+    void* p = alloc_pages(bytes, 16);
+    ASSERT_NE(p, nullptr);
+    const std::size_t align = bytes >= (std::size_t{2} << 20) ? std::size_t{2} << 20 : 16;
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % align, 0u) << bytes << " bytes";
+    std::memset(p, 0xAB, bytes);  // every byte asked for is there
+    EXPECT_EQ(static_cast<unsigned char*>(p)[bytes - 1], 0xABu);
+    std::free(p);
+  }
+  RawArray<TriRecord> records(100000);  // 4.8 MB
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(records.data()) % (std::size_t{2} << 20), 0u);
+  EXPECT_EQ(records.size(), 100000u);
+}
+
 TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   const Soup s = sphere_and_grid(16);
   const KdTree tree = KdTree::build(s.positions, s.triangles);
@@ -202,11 +220,18 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   }
   EXPECT_EQ(tree.stats().nodes, tree.nodes().size());
   EXPECT_GT(tree.stats().sah_cost, 0.0);
-  // The traversal reads a leaf's records in sequence from leaf_records().
+  EXPECT_EQ(tree.stats().bytes, tree.nodes().size() * 8 + tree.prim_refs().size() * (4 + 48));
+  // The traversal reads a leaf's records in sequence from leaf_records(): each is its
+  // reference's triangle's record, every byte of it (the padding zero).
   ASSERT_EQ(tree.leaf_records().size(), tree.prim_refs().size());
   for (std::size_t i = 0; i < tree.prim_refs().size(); ++i) {
-    ASSERT_EQ(std::memcmp(&tree.leaf_records()[i], &tree.records()[tree.prim_refs()[i]], sizeof(TriRecord)), 0)
-        << "reference " << i;
+    const std::uint32_t index = tree.prim_refs()[i];
+    const glm::uvec3 t = s.triangles[index];
+    TriRecord expected{};
+    expected.wald = make_tri_accel(s.positions[t.x], s.positions[t.y], s.positions[t.z]);
+    expected.wald.id = index;
+    ASSERT_LT(expected.wald.k, 3u) << "reference " << i << ": a degenerate triangle in a leaf";
+    ASSERT_EQ(std::memcmp(&tree.leaf_records()[i], &expected, sizeof(TriRecord)), 0) << "reference " << i;
   }
 }
 
@@ -395,11 +420,13 @@ TEST(KdTree, DegenerateTrianglesAreSkipped) {
     const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
     EXPECT_EQ(tree.watertight(), watertight);
     EXPECT_EQ(tree.stats().degenerate, 2u);
-    EXPECT_EQ(tree.tri_accel_of(1).k, 3u);
-    EXPECT_EQ(tree.tri_accel_of(1).id, 1u);
-    EXPECT_EQ(tree.tri_accel_of(2).k, 3u);
-    EXPECT_EQ(tree.tri_accel_of(0).k, watertight ? 0u : 2u);
-    EXPECT_EQ(tree.tri_accel_of(0).id, 0u);
+    // Only triangle 0 is referenced, with its record (k = 2 for Wald's, 0 for the vertices).
+    ASSERT_EQ(tree.leaf_records().size(), 1u);
+    EXPECT_EQ(tree.prim_refs(), std::vector<std::uint32_t>{0});
+    EXPECT_EQ(tree.leaf_records()[0].wald.k, watertight ? 0u : 2u);
+    EXPECT_EQ(tree.leaf_records()[0].wald.id, 0u);
+    EXPECT_EQ(make_tri_accel(s.positions[0], s.positions[1], s.positions[3]).k, 3u);
+    EXPECT_EQ(make_tri_verts(s.positions[0], s.positions[0], s.positions[2]).k, 3u);
     // A ray through all three (the degenerate ones lie on the x axis and the y axis).
     RayQuery q;
     q.org = {0.5f, 0.0f, 1.0f};
@@ -418,12 +445,13 @@ TEST(KdTree, WatertightRecordsHoldTheVerticesAndTheSameTree) {
   EXPECT_TRUE(woop.watertight());
   ASSERT_EQ(wald.nodes().size(), woop.nodes().size());
   ASSERT_EQ(wald.prim_refs(), woop.prim_refs());
-  for (std::size_t i = 0; i < wald.records().size(); ++i) {
-    ASSERT_EQ(wald.records()[i].wald.id, woop.records()[i].wald.id);
-  }
-  for (std::uint32_t id = 0; id < s.triangles.size(); ++id) {
-    const TriVerts& v = woop.record_of(id).watertight;
+  ASSERT_EQ(woop.leaf_records().size(), woop.prim_refs().size());
+  for (std::size_t i = 0; i < woop.prim_refs().size(); ++i) {
+    ASSERT_EQ(wald.leaf_records()[i].wald.id, woop.leaf_records()[i].wald.id);
+    const std::uint32_t id = woop.prim_refs()[i];
+    const TriVerts& v = woop.leaf_records()[i].watertight;
     ASSERT_EQ(v.id, id);
+    ASSERT_EQ(v.k, 0u);
     const glm::uvec3 t = s.triangles[id];
     EXPECT_EQ(glm::vec3(v.ax, v.ay, v.az), s.positions[t.x]);
     EXPECT_EQ(glm::vec3(v.bx, v.by, v.bz), s.positions[t.y]);
@@ -658,7 +686,8 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
 TEST(KdTree, SubsetBuiltWithIdsReportsThoseIds) {
   // Every third triangle of a sphere on a grid, with ids = their indices in the whole soup (in
   // increasing order, so ties go the same way), against the same subset built without ids:
-  // the same hits, the ids mapped; and record_of still takes the index into the subset.
+  // the same tree with the ids mapped in its records, and the same hits; prim_refs() still
+  // holds the indices into the subset.
   const Soup s = sphere_and_grid(24);
   std::vector<glm::uvec3> subset;
   std::vector<std::uint32_t> ids;
@@ -671,9 +700,13 @@ TEST(KdTree, SubsetBuiltWithIdsReportsThoseIds) {
     SCOPED_TRACE(test_name(watertight));
     const KdTree plain = KdTree::build(s.positions, subset, with_test(watertight));
     const KdTree with_ids = KdTree::build(s.positions, subset, with_test(watertight), ids);
-    for (std::uint32_t i = 0; i < subset.size(); ++i) {
-      ASSERT_EQ(plain.record_of(i).wald.id, i);
-      ASSERT_EQ(with_ids.record_of(i).wald.id, ids[i]);
+    ASSERT_EQ(plain.prim_refs(), with_ids.prim_refs());
+    ASSERT_FALSE(plain.prim_refs().empty());
+    for (std::size_t i = 0; i < plain.prim_refs().size(); ++i) {
+      const std::uint32_t index = plain.prim_refs()[i];
+      ASSERT_LT(index, subset.size());
+      ASSERT_EQ(plain.leaf_records()[i].wald.id, index);
+      ASSERT_EQ(with_ids.leaf_records()[i].wald.id, ids[index]);
     }
     for (bool packets : {true, false}) {
       std::vector<RayHit> a(rays.size()), b(rays.size());

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -250,10 +251,13 @@ TEST(SplitTrees, StaticTreeBuiltOnceMovingTreesOnlyWhenTheyMove) {
   const std::uint32_t first_box_id =
       static_cast<std::uint32_t>(scene.meshes[0].triangles.size() + scene.meshes[1].triangles.size() +
                                  scene.meshes[2].triangles.size());
-  for (const TriRecord& rec : f0->geometry->trees[2]->records()) {
+  std::set<std::uint32_t> box_ids;
+  for (const TriRecord& rec : f0->geometry->trees[2]->leaf_records()) {
     EXPECT_GE(rec.wald.id, first_box_id);
     EXPECT_LT(rec.wald.id, first_box_id + scene.meshes[3].triangles.size());
+    box_ids.insert(rec.wald.id);
   }
+  EXPECT_EQ(box_ids.size(), scene.meshes[3].triangles.size());  // every one of its triangles
 }
 
 // Rigid moving meshes instanced (RenderOptions::instance_moving_meshes, the default): every
