@@ -203,10 +203,10 @@ class KdTree {
   static KdTree build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
                       const KdBuildOptions& options = {}, std::span<const std::uint32_t> ids = {});
 
-  [[nodiscard]] const std::vector<KdNode>& nodes() const { return nodes_; }
+  [[nodiscard]] std::span<const KdNode> nodes() const { return nodes_.span(); }
   /// Leaf references: the triangles' indices in the arrays given to build() (not their ids
   /// when built with ids; TriAccel::id gives those).
-  [[nodiscard]] const std::vector<std::uint32_t>& prim_refs() const { return prim_refs_; }
+  [[nodiscard]] std::span<const std::uint32_t> prim_refs() const { return prim_refs_.span(); }
   /// The 48-byte record of each leaf reference, in leaf order: leaf_records()[i] is the record
   /// of triangles[prim_refs()[i]] (make_tri_accel, or make_tri_verts when watertight(), with
   /// its id), so a leaf's triangles are read in sequence with no indirection. The traversal
@@ -218,11 +218,11 @@ class KdTree {
   /// Scene bounds, slightly enlarged so rays that graze the outermost triangles still enter.
   [[nodiscard]] const Aabb& bounds() const { return bounds_; }
   [[nodiscard]] const KdBuildStats& stats() const { return stats_; }
-  [[nodiscard]] bool empty() const { return nodes_.empty(); }
+  [[nodiscard]] bool empty() const { return nodes_.size() == 0; }
 
  private:
-  std::vector<KdNode> nodes_;
-  std::vector<std::uint32_t> prim_refs_;
+  RawArray<KdNode> nodes_;  // these three written once each by the build, in parallel
+  RawArray<std::uint32_t> prim_refs_;
   RawArray<TriRecord> leaf_records_;
   Aabb bounds_;
   KdBuildStats stats_;

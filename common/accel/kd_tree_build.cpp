@@ -1784,8 +1784,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   if (top->refs >= (1u << 30)) {
     throw Error("kd-tree: more than 2^30 triangle references (the 8-byte node format's limit)");
   }
-  tree.nodes_.resize(node_total);
-  tree.prim_refs_.resize(top->refs);
+  tree.nodes_ = RawArray<KdNode>(node_total);  // the placer writes every node and reference once
+  tree.prim_refs_ = RawArray<std::uint32_t>(top->refs);
   Placer{tree.nodes_.data(), tree.prim_refs_.data()}.place(*top, 0, 1, 0);
   double cost_area = 0.0;
   add_stats(*top, root, 0, options, ctx.sah_scale, tree.stats_, cost_area);
