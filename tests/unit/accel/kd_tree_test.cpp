@@ -405,6 +405,38 @@ TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
       0));
 }
 
+TEST(KdTree, BinnedRootRefinesToTheExactPlaneFromEveryChunk) {
+  // Two clusters of tiny triangles, 30000 in x < 0.41 and 40000 in x >= 0.70123, 70000 in all:
+  // the root is binned (256 bins) and, at 65536 references or more, refined by sweeping the
+  // exact event positions in the bins around its best boundary. Every plane in the gap puts
+  // the same triangles on each side, and the larger cluster makes the cost fall as the plane
+  // moves right, so the best is the leftmost vertex of the right cluster, 0.70123, which no
+  // bin boundary hits (179.51 bins). The root's references are collected in chunks of 14001;
+  // the triangle holding that vertex is put in each chunk in turn, so a chunk whose events the
+  // window lost would move the plane.
+  constexpr int kLeft = 30000, kCount = 70000;
+  constexpr float kEdge = 0.70123f;
+  for (const int holder : {5, 20000, 30001, 45000, 69999}) {
+    SCOPED_TRACE("vertex at the edge in triangle " + std::to_string(holder));
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f), off(0.0f, 0.002f);
+    Soup s;
+    for (int i = 0; i < kCount; ++i) {
+      const float x = i == holder ? kEdge : i < kLeft && i != holder ? 0.4f * unit(rng) : 0.7013f + 0.29f * unit(rng);
+      const glm::vec3 c(x, unit(rng), unit(rng));
+      s.positions.push_back(c);
+      s.positions.push_back(c + glm::vec3(off(rng), off(rng), 0.0f));
+      s.positions.push_back(c + glm::vec3(off(rng), 0.0f, off(rng)));
+      const auto b = static_cast<unsigned>(3 * i);
+      s.triangles.emplace_back(b, b + 1, b + 2);
+    }
+    const KdTree tree = KdTree::build(s.positions, s.triangles);
+    ASSERT_FALSE(tree.nodes()[0].is_leaf());
+    EXPECT_EQ(tree.nodes()[0].axis(), 0u);
+    EXPECT_EQ(tree.nodes()[0].split, kEdge);
+  }
+}
+
 KdBuildOptions with_test(bool watertight) {
   KdBuildOptions o;
   o.watertight = watertight;
