@@ -1464,6 +1464,7 @@ class TopBuilder {
     // 103 ms and 19.2 K page faults, as large blocks are fresh pages each time; now 74-77 ms and
     // 11.8 K, the pages the window's events and the sort's buffer fill.) Plain pages, not
     // RawArray's huge ones: the room no event is written to is then never touched.
+    // An axis without a window has no array.
     std::array<std::unique_ptr<Event[]>, 3> events;
     for (int axis = 0; axis < 3; ++axis) {
       if (first[axis] != last[axis]) events[axis].reset(new Event[2 * per * chunks]);  // not initialised
@@ -1471,15 +1472,13 @@ class TopBuilder {
     std::vector<std::array<std::size_t, 3>> written(chunks);
     auto collect = [&](std::size_t c) {
       Event* out[3];
-      for (int axis = 0; axis < 3; ++axis) {
-        out[axis] = first[axis] != last[axis] ? events[axis].get() + 2 * per * c : nullptr;
-      }
+      for (int axis = 0; axis < 3; ++axis) out[axis] = events[axis] ? events[axis].get() + 2 * per * c : nullptr;
       const std::size_t end = std::min(n, (c + 1) * per);
       std::size_t m[3] = {0, 0, 0};
       for (std::size_t i = c * per; i < end; ++i) {
         const Aabb& t = ctx_.tri_box[tris[i]];
         for (int axis = 0; axis < 3; ++axis) {
-          if (first[axis] == last[axis]) continue;
+          if (!out[axis]) continue;
           const float lo = std::max(t.lo[axis], box.lo[axis]);
           const float hi = std::min(t.hi[axis], box.hi[axis]);
           const int lo_bin = std::min(static_cast<int>((lo - box.lo[axis]) * scale[axis]), bins - 1);
@@ -1502,8 +1501,8 @@ class TopBuilder {
     const float inv_area = 1.0f / scaled_area(box, ctx_.sah_scale);
     std::vector<Event> buffer;
     for (int axis = 0; axis < 3; ++axis) {
-      if (first[axis] == last[axis]) continue;
       Event* ev = events[axis].get();
+      if (!ev) continue;
       std::size_t size = 0;
       for (std::size_t c = 0; c < chunks; ++c) {
         if (written[c][axis] > 0 && size != 2 * per * c) {
@@ -1661,9 +1660,10 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
 void* alloc_pages(std::size_t bytes, std::size_t align) {
   constexpr std::size_t kHugePage = std::size_t{2} << 20;
   if (bytes >= kHugePage) align = std::max(align, kHugePage);
-  void* p = std::aligned_alloc(align, (bytes + align - 1) / align * align);  // a multiple of align
+  const std::size_t rounded = (bytes + align - 1) / align * align;  // aligned_alloc wants a multiple
+  void* p = std::aligned_alloc(align, rounded);
   if (p == nullptr) throw std::bad_alloc();
-  if (align >= kHugePage) ::madvise(p, (bytes + align - 1) / align * align, MADV_HUGEPAGE);
+  if (align >= kHugePage) ::madvise(p, rounded, MADV_HUGEPAGE);
   return p;
 }
 

@@ -422,7 +422,7 @@ TEST(KdTree, BinnedRootRefinesToTheExactPlaneFromEveryChunk) {
     std::uniform_real_distribution<float> unit(0.0f, 1.0f), off(0.0f, 0.002f);
     Soup s;
     for (int i = 0; i < kCount; ++i) {
-      const float x = i == holder ? kEdge : i < kLeft && i != holder ? 0.4f * unit(rng) : 0.7013f + 0.29f * unit(rng);
+      const float x = i == holder ? kEdge : i < kLeft ? 0.4f * unit(rng) : 0.7013f + 0.29f * unit(rng);
       const glm::vec3 c(x, unit(rng), unit(rng));
       s.positions.push_back(c);
       s.positions.push_back(c + glm::vec3(off(rng), off(rng), 0.0f));
