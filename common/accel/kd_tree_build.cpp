@@ -354,6 +354,7 @@ struct Scratch {
   std::vector<std::uint8_t> side;
   std::vector<Event> sort_buffer;
   std::vector<std::uint32_t> leaf;
+  std::vector<std::uint64_t> sort_bits;  // sort_distinct's bitmap, all zero between calls
   // Each reference's bounds in the node being split (clipped at the block's root, then where it
   // straddles a split), with -0 written as +0 as in its events (add_events).
   std::vector<Aabb> bounds;
@@ -431,6 +432,7 @@ struct Scratch {
     std::uint32_t index;
     int depth;
     Aabb box;
+    std::uint32_t from[3];  // each axis's first plane above box.lo
   };
   std::vector<std::uint32_t> mask_refs;  // bit -> index into the block's triangle list
   MaskPlanes mask_planes[3];
@@ -442,6 +444,34 @@ std::uint32_t sort_key(float pos) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);  // unsigned order = float order
 }
 
+float from_sort_key(std::uint32_t key) {
+  return std::bit_cast<float>((key & 0x80000000u) ? (key & 0x7FFFFFFFu) : ~key);
+}
+
+// Sorts distinct indices below `limit` ascending by setting them in a bitmap and reading it
+// back in order: a pass over the list and one over the bitmap words its range covers, instead
+// of a comparison sort. `bits` is all zero between calls (each word read is cleared).
+void sort_distinct(std::vector<std::uint32_t>& v, std::size_t limit, std::vector<std::uint64_t>& bits) {
+  if (v.size() < 16) {
+    std::sort(v.begin(), v.end());
+    return;
+  }
+  const std::size_t words = (limit + 63) / 64;
+  if (bits.size() < words) bits.resize(words);
+  std::uint32_t lo = std::numeric_limits<std::uint32_t>::max(), hi = 0;
+  for (const std::uint32_t x : v) {
+    bits[x >> 6] |= std::uint64_t{1} << (x & 63u);
+    lo = std::min(lo, x);
+    hi = std::max(hi, x);
+  }
+  std::size_t k = 0;
+  for (std::uint32_t w = lo >> 6; w <= hi >> 6; ++w) {
+    for (std::uint64_t m = bits[w]; m != 0; m &= m - 1) v[k++] = 64 * w + static_cast<std::uint32_t>(std::countr_zero(m));
+    bits[w] = 0;
+  }
+  RTC_DCHECK(k == v.size(), "sort_distinct: repeated index");
+}
+
 // Sorts events by position: LSD radix sort over the key bits that differ between events (a
 // small node's positions share their top bits), in 1 to 4 digits of at most 11 bits, as many
 // and as wide as cost least for this many events (each digit costs a pass over the events and
@@ -449,9 +479,15 @@ std::uint32_t sort_key(float pos) {
 // only on the input order, whatever the digits.
 void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
   if (n < 64) {
-    std::sort(ev, ev + n, [](const Event& x, const Event& y) {
-      return x.pos < y.pos || (x.pos == y.pos && x.code < y.code);
-    });
+    // By position, then code, as one 64-bit key each: integer compares instead of a float
+    // comparison with a tie branch. sort_key orders floats as < does except -0 before +0,
+    // and events hold no -0 (add_events writes +0).
+    std::uint64_t key[64];
+    for (std::size_t i = 0; i < n; ++i) key[i] = std::uint64_t{sort_key(ev[i].pos)} << 32 | ev[i].code;
+    std::sort(key, key + n);
+    for (std::size_t i = 0; i < n; ++i) {
+      ev[i] = Event{from_sort_key(static_cast<std::uint32_t>(key[i] >> 32)), static_cast<std::uint32_t>(key[i])};
+    }
     return;
   }
   const std::uint32_t key0 = sort_key(ev[0].pos);
@@ -892,7 +928,7 @@ class MaskBuilder {
     using Bits = MaskBits<W>;
     std::vector<std::uint32_t>& refs = s_.mask_refs;
     // Bits in ascending reference order, so a leaf's set bits list its triangles ascending.
-    std::sort(refs.begin(), refs.end());
+    sort_distinct(refs, tris_.size(), s_.sort_bits);
     std::vector<std::uint32_t>& slot = s_.slot;
     if (slot.size() < tris_.size()) slot.resize(tris_.size());
     for (std::size_t b = 0; b < refs.size(); ++b) slot[refs[b]] = static_cast<std::uint32_t>(b);
@@ -952,15 +988,26 @@ class MaskBuilder {
   [[gnu::always_inline]] inline void build(std::size_t root, const MaskBits<W>& root_mask, const Aabb& root_box,
                                            int root_depth) {
     using Bits = MaskBits<W>;
-    const auto task_of = [](const Bits& m, std::size_t index, int depth, const Aabb& box) {
-      Scratch::MaskTask t{{}, static_cast<std::uint32_t>(index), depth, box};
+    const auto task_of = [](const Bits& m, std::size_t index, int depth, const Aabb& box, const std::uint32_t from[3]) {
+      Scratch::MaskTask t{{}, static_cast<std::uint32_t>(index), depth, box, {from[0], from[1], from[2]}};
       for (int w = 0; w < W; ++w) t.mask[w] = m.w[w];
       return t;
     };
     const KdBuildOptions& options = ctx_.options;
     std::vector<Scratch::MaskTask>& stack = s_.mask_stack;
     stack.clear();
-    stack.push_back(task_of(root_mask, root, root_depth, root_box));
+    // A child's box starts where its parent's does but on the split axis of a right child,
+    // whose box starts at the chosen plane: its first plane above is the next one (the
+    // planes' positions ascend strictly).
+    std::uint32_t root_from[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
+      root_from[axis] = static_cast<std::uint32_t>(
+          std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size),
+                           root_box.lo[axis]) -
+          planes.pos.begin());
+    }
+    stack.push_back(task_of(root_mask, root, root_depth, root_box, root_from));
     while (!stack.empty()) {
       const Scratch::MaskTask task = stack.back();
       stack.pop_back();
@@ -979,9 +1026,11 @@ class MaskBuilder {
           if (!(hi > lo)) continue;
           const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
           const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
-          const std::size_t from = static_cast<std::size_t>(
-              std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), lo) -
-              planes.pos.begin());
+          const std::size_t from = task.from[axis];
+          RTC_DCHECK(from == static_cast<std::size_t>(std::upper_bound(planes.pos.begin(),
+                                                                       planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), lo) -
+                                                      planes.pos.begin()),
+                     "bit-mask stage: a node's first plane");
           if constexpr (kVector) {
             scan_planes_avx512<W>(planes, from, hi, mask, sah, axis, split, chosen);
           } else {
@@ -1010,8 +1059,10 @@ class MaskBuilder {
       left_box.hi[split.axis] = split.pos;
       right_box.lo[split.axis] = split.pos;
       const int depth = task.depth + 1;
-      stack.push_back(task_of(right, first + 1, depth, right_box));
-      stack.push_back(task_of(left, first, depth, left_box));
+      std::uint32_t right_from[3] = {task.from[0], task.from[1], task.from[2]};
+      right_from[split.axis] = static_cast<std::uint32_t>(chosen + 1);
+      stack.push_back(task_of(right, first + 1, depth, right_box, right_from));
+      stack.push_back(task_of(left, first, depth, left_box, task.from));
     }
   }
 
@@ -1285,7 +1336,7 @@ class BlockBuilder {
       if (ev[i].type() != kEnd) local.push_back(ev[i].ref());  // one start or planar per reference
     }
     // The block's triangle list is ascending, so sorted local indices give sorted triangles.
-    std::sort(local.begin(), local.end());
+    sort_distinct(local, tris_.size(), s_.sort_bits);
     out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
   }
 
