@@ -142,6 +142,7 @@ class TriangleClip {
     const double m = std::max({mag.x, mag.y, mag.z});
     if (!std::isfinite(m)) return false;
     pad_ = std::ldexp(m, -40);
+    vector_ = ctx.options.simd && directed_cvt_avx512();
     glm::dvec3* poly = a_.data();
     glm::dvec3* next = b_.data();
     const glm::uvec3 idx = ctx.triangles[tri];
@@ -214,24 +215,58 @@ class TriangleClip {
     return x;
   }
 
+  // The largest float at or below lo - pad and the smallest at or above hi + pad on each axis,
+  // inside `clamped` (which it returns where they leave no room).
   [[nodiscard]] Aabb round_out(const glm::dvec3& lo, const glm::dvec3& hi, const Aabb& clamped) const {
+    float l[4], h[4];
+    if (vector_) {
+      round_out_avx512(lo, hi, pad_, l, h);
+    } else {
+      for (int axis = 0; axis < 3; ++axis) {
+        l[axis] = static_cast<float>(lo[axis] - pad_);
+        if (static_cast<double>(l[axis]) > lo[axis] - pad_) {
+          l[axis] = std::nextafter(l[axis], -std::numeric_limits<float>::infinity());
+        }
+        h[axis] = static_cast<float>(hi[axis] + pad_);
+        if (static_cast<double>(h[axis]) < hi[axis] + pad_) {
+          h[axis] = std::nextafter(h[axis], std::numeric_limits<float>::infinity());
+        }
+      }
+    }
     Aabb out;
     for (int axis = 0; axis < 3; ++axis) {
-      float l = static_cast<float>(lo[axis] - pad_);
-      if (static_cast<double>(l) > lo[axis] - pad_) l = std::nextafter(l, -std::numeric_limits<float>::infinity());
-      float h = static_cast<float>(hi[axis] + pad_);
-      if (static_cast<double>(h) < hi[axis] + pad_) h = std::nextafter(h, std::numeric_limits<float>::infinity());
-      out.lo[axis] = std::max(l, clamped.lo[axis]);
-      out.hi[axis] = std::min(h, clamped.hi[axis]);
+      out.lo[axis] = std::max(l[axis], clamped.lo[axis]);
+      out.hi[axis] = std::min(h[axis], clamped.hi[axis]);
       if (!(out.lo[axis] <= out.hi[axis])) return clamped;
     }
     return out;
+  }
+
+  static bool directed_cvt_avx512() {
+    static const bool ok = cpu_supports(Isa::Avx512);
+    return ok;
+  }
+
+  // round_out's floats with the conversions' own rounding (AVX-512's embedded rounding: toward
+  // -inf for the low ends, +inf for the high ones) instead of converting to nearest and
+  // stepping: the same floats, as no flush-to-zero mode is ever set.
+  [[gnu::target("avx512f")]] static void round_out_avx512(const glm::dvec3& lo, const glm::dvec3& hi, double pad,
+                                                          float l[4], float h[4]) {
+    const __m512d p = _mm512_set1_pd(pad);
+    const __m512d down = _mm512_sub_pd(_mm512_setr_pd(lo.x, lo.y, lo.z, 0.0, 0.0, 0.0, 0.0, 0.0), p);
+    const __m512d up = _mm512_add_pd(_mm512_setr_pd(hi.x, hi.y, hi.z, 0.0, 0.0, 0.0, 0.0, 0.0), p);
+    // (The maskz forms: GCC 12's unmasked one reads an undefined vector, which -Werror rejects.)
+    _mm_storeu_ps(l, _mm256_castps256_ps128(
+                         _mm512_maskz_cvt_roundpd_ps(0x0F, down, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC)));
+    _mm_storeu_ps(h, _mm256_castps256_ps128(
+                         _mm512_maskz_cvt_roundpd_ps(0x0F, up, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC)));
   }
 
   std::array<glm::dvec3, kMaxVerts> a_, b_;
   glm::dvec3* poly_ = nullptr;
   int n_ = 0;
   double pad_ = 0;
+  bool vector_ = false;  // round_out_avx512, as KdBuildOptions::simd allows
 };
 
 Aabb clamp_box(const Aabb& bounds, const Aabb& box) {
