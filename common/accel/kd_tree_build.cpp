@@ -386,7 +386,7 @@ struct MaskBits {
 // so one thread never interleaves two blocks).
 struct Scratch {
   EventArena arena;
-  std::vector<std::uint8_t> side;
+  std::vector<std::uint32_t> side;  // a reference's Side in the node being split
   std::vector<Event> sort_buffer;
   std::vector<std::uint32_t> leaf;
   std::vector<std::uint64_t> sort_bits;  // sort_distinct's bitmap, all zero between calls
@@ -869,6 +869,42 @@ template <int W>
   }
 }
 
+// BlockBuilder::node's classification of the references by their events on the split axis at
+// `p`, 8 events at a time: a start writes "right" (at or above p) or "both", an end at or below
+// p "left", a planar event its side. The writes are one scatter per 8 events; a scatter writes
+// its lanes in order, so where a reference's start and end fall in the same 8, the end's write
+// comes last, as in the scalar loop.
+[[gnu::target("avx512f,avx512dq,avx512vl,avx2")]] void classify_events_avx512(const Event* ev, std::size_t size,
+                                                                            std::uint32_t* side, float p,
+                                                                            bool planar_left) {
+  const __m256 plane = _mm256_set1_ps(p);
+  const __m256i three = _mm256_set1_epi32(3), start_type = _mm256_set1_epi32(kStart);
+  const __m256i end_type = _mm256_set1_epi32(kEnd), planar_type = _mm256_set1_epi32(kPlanar);
+  const __m256i left_side = _mm256_set1_epi32(kLeft), right_side = _mm256_set1_epi32(kRight);
+  const __m256i both_sides = _mm256_set1_epi32(kBoth);
+  const __mmask8 planar_left_mask = planar_left ? 0xFF : 0x00;
+  for (std::size_t i = 0; i < size; i += 8) {
+    const __mmask8 live = size - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (size - i)) - 1u);
+    const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
+    const __m256 pos = _mm256_castsi256_ps(_mm512_maskz_cvtepi64_epi32(0xFF, v));  // the low halves
+    const __m256i code = _mm512_maskz_cvtepi64_epi32(0xFF, _mm512_maskz_srli_epi64(0xFF, v, 32));
+    const __m256i ref = _mm256_srli_epi32(code, 2);
+    const __m256i type = _mm256_and_si256(code, three);
+    const __mmask8 start = live & _mm256_cmpeq_epi32_mask(type, start_type);
+    const __mmask8 end = live & _mm256_cmpeq_epi32_mask(type, end_type);
+    const __mmask8 planar = live & _mm256_cmpeq_epi32_mask(type, planar_type);
+    const __mmask8 ge = _mm256_cmp_ps_mask(pos, plane, _CMP_GE_OQ);
+    const __mmask8 le = _mm256_cmp_ps_mask(pos, plane, _CMP_LE_OQ);
+    const __mmask8 planar_to_left = _mm256_cmp_ps_mask(pos, plane, _CMP_LT_OQ) |
+                                    (_mm256_cmp_ps_mask(pos, plane, _CMP_EQ_OQ) & planar_left_mask);
+    const __mmask8 to_right = (start & ge) | (planar & ~planar_to_left);
+    const __mmask8 to_left = (end & le) | (planar & planar_to_left);
+    __m256i value = _mm256_mask_mov_epi32(both_sides, to_right, right_side);
+    value = _mm256_mask_mov_epi32(value, to_left, left_side);
+    _mm256_mask_i32scatter_epi32(side, start | to_left | to_right, ref, value, 4);
+  }
+}
+
 // What split_events_avx512 wrote: events kept on either side, how many of them are not ends
 // (one per reference), and straddlers.
 struct SplitCounts {
@@ -876,17 +912,17 @@ struct SplitCounts {
 };
 
 // BlockBuilder::node's split of one axis's events by each reference's side, 8 events at a time:
-// the sides gathered (4 bytes read at each reference, so `side` has 3 bytes after its last),
+// the sides gathered,
 // the events kept on either side compressed into `left` and `right` in order (each store
 // writes 8 events, so both have room for 8 more than they keep). With clipping a straddler's
 // events go to neither list; without, one-sided references' events to their side and every
 // other to both. On the split axis the kept references are counted and, given `straddlers`,
 // the references whose start lies on both sides written there (in event order).
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitCounts split_events_avx512(
-    const Event* ev, std::size_t size, const std::uint8_t* side, bool clip, bool split_axis, Event* left,
+    const Event* ev, std::size_t size, const std::uint32_t* side, bool clip, bool split_axis, Event* left,
     Event* right, std::uint32_t* straddlers) {
   SplitCounts out;
-  const __m256i low_byte = _mm256_set1_epi32(0xFF), left_side = _mm256_set1_epi32(kLeft);
+  const __m256i left_side = _mm256_set1_epi32(kLeft);
   const __m256i right_side = _mm256_set1_epi32(kRight), both_sides = _mm256_set1_epi32(kBoth);
   const __m512i three = _mm512_set1_epi64(3), end_type = _mm512_set1_epi64(kEnd);
   const __m512i start_type = _mm512_set1_epi64(kStart);
@@ -894,8 +930,7 @@ struct SplitCounts {
     const __mmask8 live = size - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (size - i)) - 1u);
     const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
     const __m512i ref = _mm512_maskz_srli_epi64(0xFF, v, 34);  // code >> 2, code in the high half
-    const __m256i where =
-        _mm256_and_si256(_mm512_mask_i64gather_epi32(_mm256_setzero_si256(), live, ref, side, 1), low_byte);
+    const __m256i where = _mm512_mask_i64gather_epi32(_mm256_setzero_si256(), live, ref, side, 4);
     const __mmask8 to_left =
         live & (clip ? _mm256_cmpeq_epi32_mask(where, left_side) : _mm256_cmpneq_epi32_mask(where, right_side));
     const __mmask8 to_right =
@@ -1131,7 +1166,7 @@ class BlockBuilder {
   void run(const Aabb& box, int depth) {
     const std::size_t n = tris_.size();
     s_.arena.release(0);
-    if (s_.side.size() < n + 3) s_.side.resize(n + 3);  // split_events_avx512 reads 4 bytes at each
+    if (s_.side.size() < n) s_.side.resize(n);
     std::size_t off[3], len[3];
     std::vector<Aabb>& bounds = s_.bounds;
     bounds.resize(n);
@@ -1199,8 +1234,11 @@ class BlockBuilder {
     // Classify every reference by its events on the split axis. A start precedes its own end
     // (start < end for a non-planar reference), so the start sets "both" or "right" first.
     const float p = split.pos;
-    std::uint8_t* side = s_.side.data();
-    {
+    std::uint32_t* side = s_.side.data();
+    const bool vector = ctx_.options.simd && sweep_avx512();
+    if (vector) {
+      classify_events_avx512(s_.arena.at(off[split.axis]), len[split.axis], side, p, split.planar_left);
+    } else {
       const Event* ev = s_.arena.at(off[split.axis]);
       for (std::size_t i = 0; i < len[split.axis]; ++i) {
         const Event e = ev[i];
@@ -1225,7 +1263,6 @@ class BlockBuilder {
     // events are sorted and merged into the lists the other references keep in order.
     // The split axis's pass also collects the straddlers (with clipping) and counts each
     // child's one-sided references; their order does not matter (sorted below).
-    const bool vector = ctx_.options.simd && sweep_avx512();
     std::vector<std::uint32_t>& straddlers = s_.straddlers;
     straddlers.clear();
     std::size_t n_kept_left[3], n_kept_right[3];
@@ -1265,7 +1302,7 @@ class BlockBuilder {
       if (ctx_.clip) {
         for (std::size_t i = 0; i < size; ++i) {
           const Event e = ev[i];
-          const std::uint8_t s = side[e.ref()];
+          const std::uint32_t s = side[e.ref()];
           *l = e;
           *r = e;
           l += s == kLeft;
@@ -1274,7 +1311,7 @@ class BlockBuilder {
       } else {
         for (std::size_t i = 0; i < size; ++i) {
           const Event e = ev[i];
-          const std::uint8_t s = side[e.ref()];
+          const std::uint32_t s = side[e.ref()];
           *l = e;
           *r = e;
           l += s != kRight;
