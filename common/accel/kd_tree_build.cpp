@@ -507,12 +507,63 @@ void sort_distinct(std::vector<std::uint32_t>& v, std::size_t limit, std::vector
   RTC_DCHECK(k == v.size(), "sort_distinct: repeated index");
 }
 
+bool sweep_avx512();
+
+// sort_events below 64 events on AVX-512: each event's place is its rank, the number of events
+// with a smaller key (the key as below) plus those with an equal key before it, counted 8 events
+// against one at a time (n x n/8 compares), and the events are scattered to their places. The
+// same order as sorting the keys (ties are identical events, left in input order).
+[[gnu::target("avx512f,avx512dq,avx512vl,avx2")]] void sort_small_events_avx512(Event* ev, std::size_t n) {
+  alignas(64) std::uint64_t key[64];
+  alignas(64) Event out[64];
+  const std::size_t regs = (n + 7) / 8;
+  const __m512i low_half = _mm512_set1_epi64(0xFFFFFFFF), sign = _mm512_set1_epi64(0x80000000);
+  for (std::size_t r = 0; r < regs; ++r) {
+    const std::size_t i = 8 * r;
+    const __mmask8 live = n - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (n - i)) - 1u);
+    const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
+    // sort_key of the low half (the position): flip all bits of a negative, the sign of a
+    // positive; then the halves swapped, so the key is sort_key(pos) << 32 | code.
+    const __m512i flip = _mm512_and_si512(_mm512_or_si512(_mm512_maskz_srai_epi32(0xFFFF, v, 31), sign), low_half);
+    _mm512_store_si512(key + i, _mm512_maskz_ror_epi64(0xFF, _mm512_xor_si512(v, flip), 32));
+  }
+  const __m512i one = _mm512_set1_epi64(1), lane = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7);
+  for (std::size_t r = 0; r < regs; ++r) {
+    const std::size_t i = 8 * r;
+    const __mmask8 live = n - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (n - i)) - 1u);
+    const __m512i k = _mm512_load_si512(key + i);
+    __m512i rank = _mm512_setzero_si512();
+    for (std::size_t j = 0; j < i; ++j) {  // events before these: counted when not greater
+      rank = _mm512_mask_add_epi64(rank, _mm512_cmpge_epu64_mask(k, _mm512_set1_epi64(static_cast<long long>(key[j]))),
+                                   rank, one);
+    }
+    const std::size_t block_end = std::min(n, i + 8);
+    for (std::size_t j = i; j < block_end; ++j) {  // among these: the earlier ones when equal
+      const __m512i b = _mm512_set1_epi64(static_cast<long long>(key[j]));
+      const __mmask8 before = _mm512_cmpgt_epu64_mask(lane, _mm512_set1_epi64(static_cast<long long>(j - i)));
+      rank = _mm512_mask_add_epi64(
+          rank, _mm512_cmpgt_epu64_mask(k, b) | (_mm512_cmpeq_epu64_mask(k, b) & before), rank, one);
+    }
+    for (std::size_t j = block_end; j < n; ++j) {  // events after these: counted when smaller
+      rank = _mm512_mask_add_epi64(rank, _mm512_cmpgt_epu64_mask(k, _mm512_set1_epi64(static_cast<long long>(key[j]))),
+                                   rank, one);
+    }
+    _mm512_mask_i64scatter_epi64(out, live, rank, _mm512_maskz_loadu_epi64(live, ev + i), 8);
+  }
+  std::memcpy(ev, out, n * sizeof(Event));
+}
+
 // Sorts events by position: LSD radix sort over the key bits that differ between events (a
 // small node's positions share their top bits), in 1 to 4 digits of at most 11 bits, as many
 // and as wide as cost least for this many events (each digit costs a pass over the events and
 // one over its buckets: a small list sorts on narrow digits). Stable, so the result depends
-// only on the input order, whatever the digits.
-void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer) {
+// only on the input order, whatever the digits. Below 64 events: by (position, code), on AVX-512
+// (`vector`) by rank, else with std::sort on 64-bit keys; the same order.
+void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vector) {
+  if (n < 64 && vector) {
+    sort_small_events_avx512(ev, n);
+    return;
+  }
   if (n < 64) {
     // By position, then code, as one 64-bit key each: integer compares instead of a float
     // comparison with a tie branch. sort_key orders floats as < does except -0 before +0,
@@ -1179,7 +1230,7 @@ class BlockBuilder {
       Event* ev = s_.arena.at(off[axis]);
       std::size_t m = 0;
       for (std::size_t i = 0; i < n; ++i) m += add_events(ev + m, bounds[i], axis, static_cast<std::uint32_t>(i));
-      sort_events(ev, m, s_.sort_buffer);
+      sort_events(ev, m, s_.sort_buffer, ctx_.options.simd && sweep_avx512());
       len[axis] = m;
     }
     s_.restore.clear();
@@ -1365,8 +1416,8 @@ class BlockBuilder {
         n_new_left += add_events(new_left.data() + n_new_left, clip_left[k], axis, straddlers[k]);
         n_new_right += add_events(new_right.data() + n_new_right, clip_right[k], axis, straddlers[k]);
       }
-      sort_events(new_left.data(), n_new_left, s_.sort_buffer);
-      sort_events(new_right.data(), n_new_right, s_.sort_buffer);
+      sort_events(new_left.data(), n_new_left, s_.sort_buffer, vector);
+      sort_events(new_right.data(), n_new_right, s_.sort_buffer, vector);
       const Event* kept_left = s_.kept_left[axis].data();
       const Event* kept_right = s_.kept_right[axis].data();
       Event* l_end = std::merge(kept_left, kept_left + n_kept_left[axis], new_left.data(),
@@ -1639,7 +1690,7 @@ class TopBuilder {
         n_right -= b.end[axis][i];
       }
       // Equal events are interchangeable, so the sort's order among them cannot matter.
-      sort_events(ev, size, buffer);
+      sort_events(ev, size, buffer, ctx_.options.simd && sweep_avx512());
       const SplitChoice exact = best_on_axis(ctx_.options, ev, size, n_left, n_right, box, axis, inv_area, ctx_.sah_scale);
       if (exact.cost < best[axis].cost) best[axis] = exact;
     }
