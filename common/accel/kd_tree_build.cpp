@@ -1057,27 +1057,62 @@ class MaskBuilder {
     for (int axis = 0; axis < 3; ++axis) {
       Scratch::MaskPlanes& planes = s_.mask_planes[axis];
       planes.start<W>(len[axis]);
-      Bits below, gone;  // started (or planar) before the plane; ended at or before it
-      for (std::size_t i = 0; i < len[axis];) {
-        const float pos = ev[axis][i].pos;
-        Bits start, end, planar;
-        for (; i < len[axis] && ev[axis][i].pos == pos; ++i) {
-          const std::uint32_t bit = slot[ev[axis][i].ref()];
-          switch (ev[axis][i].type()) {
-            case kStart:
-              start.set(bit);
-              break;
-            case kEnd:
-              end.set(bit);
-              break;
-            default:
-              planar.set(bit);
+      if constexpr (W > 1) {
+        Bits below, gone;  // started (or planar) before the plane; ended at or before it
+        for (std::size_t i = 0; i < len[axis];) {
+          const float pos = ev[axis][i].pos;
+          Bits start, end, planar;
+          for (; i < len[axis] && ev[axis][i].pos == pos; ++i) {
+            const std::uint32_t bit = slot[ev[axis][i].ref()];
+            switch (ev[axis][i].type()) {
+              case kStart:
+                start.set(bit);
+                break;
+              case kEnd:
+                end.set(bit);
+                break;
+              default:
+                planar.set(bit);
+            }
           }
+          gone |= end | planar;
+          planes.push<W>(pos, below, all.and_not(gone), planar, start | end | planar);
+          below |= start | planar;
         }
-        gone |= end | planar;
-        planes.push<W>(pos, below, all.and_not(gone), planar, start | end | planar);
-        below |= start | planar;
+        planes.finish<W>();
+        continue;
       }
+      // One word: one plane per group of equal positions without a branch per event. Every
+      // event writes its group's plane as it stands so far at index k, and the group's last
+      // event keeps it (k moves on) and folds the group into `below` and `gone`. (With more
+      // words the four writes per word and event cost more than the branches they save.)
+      std::uint64_t below = 0, gone = 0;             // started (or planar) before the plane; ended before it
+      std::uint64_t start = 0, end = 0, planar = 0;  // the present group's
+      const Event* e = ev[axis];
+      const std::size_t n = len[axis];
+      std::size_t k = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint64_t one = std::uint64_t{1} << slot[e[i].ref()];
+        const std::uint32_t type = e[i].type();
+        start |= one & (std::uint64_t{0} - (type == kStart));
+        end |= one & (std::uint64_t{0} - (type == kEnd));
+        planar |= one & (std::uint64_t{0} - (type == kPlanar));
+        const float pos = e[i].pos;
+        const bool last = i + 1 == n || e[i + 1].pos != pos;
+        const std::uint64_t keep = std::uint64_t{0} - last;
+        planes.pos[k] = pos;
+        planes.below[0][k] = below;
+        planes.above[0][k] = all.w[0] & ~(gone | end | planar);
+        planes.planar[0][k] = planar;
+        planes.owners[0][k] = start | end | planar;
+        below |= (start | planar) & keep;
+        gone |= (end | planar) & keep;
+        start &= ~keep;
+        end &= ~keep;
+        planar &= ~keep;
+        k += last;
+      }
+      planes.size = k;
       planes.finish<W>();
     }
     if (ctx_.options.simd && mask_scan_avx512()) {
