@@ -147,9 +147,11 @@ struct KdBuildOptions {
   /// trees rebuilt as frames go by (those of meshes that move) unless told otherwise (KdClip).
   bool clip = true;
   /// Vector code in the build where the CPU has it (with AVX-512: the event sweep's SAH 16
-  /// events at a time, the split of a node's event lists 8 at a time; with AVX-512 VPOPCNTDQ:
-  /// the bit-mask stage's plane scan, 8 planes at a time). False: the scalar code, which builds
-  /// the same tree (tested); for tests and A/B runs.
+  /// events at a time, the split axis's classification and the split of a node's event lists
+  /// 8 at a time, event lists under 64 sorted by rank, clipped bounds rounded outward by
+  /// conversions with embedded rounding; with AVX-512 VPOPCNTDQ: the bit-mask stage's plane
+  /// scan, 8 planes at a time). False: the scalar code, which builds the same tree (tested);
+  /// for tests and A/B runs.
   bool simd = true;
 
   /// mask_below with -1 resolved. With clipping 64: larger bit-mask subtrees lose the clipping
