@@ -77,7 +77,22 @@ struct BuildContext {
   float sah_scale = 1.0f;       // see sah_scale_for()
   bool clip = true;             // KdBuildOptions::clip
   std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most kMaxMaskRefs
+  // KdBuildOptions::simd where the CPU has AVX-512 (sweep_avx512): the event sweep's split,
+  // classification and small sorts and TriangleClip's rounding take their vector code.
+  bool avx512 = false;
 };
+
+// Whether best_on_axis_avx512 and the build's other AVX-512 code run here (AVX-512 F, DQ, VL,
+// BW, as the 16-wide tracer).
+bool sweep_avx512() {
+  static const bool ok = cpu_supports(Isa::Avx512);
+  return ok;
+}
+
+// The lanes of an 8-wide step with `left` elements still to go (all 8 from 8 on).
+inline __mmask8 lanes8(std::size_t left) {
+  return left >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << left) - 1u);
+}
 
 // SAH areas are computed with every length multiplied by this power of two: 1 for scenes whose
 // extent lies in [2^-30, 2^30] (exact, so those trees are unchanged), otherwise the scale that
@@ -142,7 +157,7 @@ class TriangleClip {
     const double m = std::max({mag.x, mag.y, mag.z});
     if (!std::isfinite(m)) return false;
     pad_ = std::ldexp(m, -40);
-    vector_ = ctx.options.simd && directed_cvt_avx512();
+    vector_ = ctx.avx512;
     glm::dvec3* poly = a_.data();
     glm::dvec3* next = b_.data();
     const glm::uvec3 idx = ctx.triangles[tri];
@@ -242,11 +257,6 @@ class TriangleClip {
     return out;
   }
 
-  static bool directed_cvt_avx512() {
-    static const bool ok = cpu_supports(Isa::Avx512);
-    return ok;
-  }
-
   // round_out's floats with the conversions' own rounding (AVX-512's embedded rounding: toward
   // -inf for the low ends, +inf for the high ones) instead of converting to nearest and
   // stepping: the same floats, as no flush-to-zero mode is ever set.
@@ -266,7 +276,7 @@ class TriangleClip {
   glm::dvec3* poly_ = nullptr;
   int n_ = 0;
   double pad_ = 0;
-  bool vector_ = false;  // round_out_avx512, as KdBuildOptions::simd allows
+  bool vector_ = false;  // round_out_avx512 (BuildContext::avx512)
 };
 
 Aabb clamp_box(const Aabb& bounds, const Aabb& box) {
@@ -507,8 +517,6 @@ void sort_distinct(std::vector<std::uint32_t>& v, std::size_t limit, std::vector
   RTC_DCHECK(k == v.size(), "sort_distinct: repeated index");
 }
 
-bool sweep_avx512();
-
 // sort_events below 64 events on AVX-512: each event's place is its rank, the number of events
 // with a smaller key (the key as below) plus those with an equal key before it, counted 8 events
 // against one at a time (n x n/8 compares), and the events are scattered to their places. The
@@ -520,7 +528,7 @@ bool sweep_avx512();
   const __m512i low_half = _mm512_set1_epi64(0xFFFFFFFF), sign = _mm512_set1_epi64(0x80000000);
   for (std::size_t r = 0; r < regs; ++r) {
     const std::size_t i = 8 * r;
-    const __mmask8 live = n - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (n - i)) - 1u);
+    const __mmask8 live = lanes8(n - i);
     const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
     // sort_key of the low half (the position): flip all bits of a negative, the sign of a
     // positive; then the halves swapped, so the key is sort_key(pos) << 32 | code.
@@ -530,7 +538,7 @@ bool sweep_avx512();
   const __m512i one = _mm512_set1_epi64(1), lane = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7);
   for (std::size_t r = 0; r < regs; ++r) {
     const std::size_t i = 8 * r;
-    const __mmask8 live = n - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (n - i)) - 1u);
+    const __mmask8 live = lanes8(n - i);
     const __m512i k = _mm512_load_si512(key + i);
     __m512i rank = _mm512_setzero_si512();
     for (std::size_t j = 0; j < i; ++j) {  // events before these: counted when not greater
@@ -645,12 +653,6 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vect
     n_left += n_start + n_planar;
   }
   return i;
-}
-
-// Whether best_on_axis_avx512 runs here (AVX-512 F, DQ, VL, BW, as the 16-wide tracer).
-bool sweep_avx512() {
-  static const bool ok = cpu_supports(Isa::Avx512);
-  return ok;
 }
 
 // sweep_groups 16 events at a time. An event ends its group where the next event's position
@@ -935,7 +937,7 @@ template <int W>
   const __m256i both_sides = _mm256_set1_epi32(kBoth);
   const __mmask8 planar_left_mask = planar_left ? 0xFF : 0x00;
   for (std::size_t i = 0; i < size; i += 8) {
-    const __mmask8 live = size - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (size - i)) - 1u);
+    const __mmask8 live = lanes8(size - i);
     const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
     const __m256 pos = _mm256_castsi256_ps(_mm512_maskz_cvtepi64_epi32(0xFF, v));  // the low halves
     const __m256i code = _mm512_maskz_cvtepi64_epi32(0xFF, _mm512_maskz_srli_epi64(0xFF, v, 32));
@@ -963,9 +965,8 @@ struct SplitCounts {
 };
 
 // BlockBuilder::node's split of one axis's events by each reference's side, 8 events at a time:
-// the sides gathered,
-// the events kept on either side compressed into `left` and `right` in order (each store
-// writes 8 events, so both have room for 8 more than they keep). With clipping a straddler's
+// the sides gathered, the events kept on either side compressed into `left` and `right` in
+// order (each store writes 8 events, so both have room for 8 more than they keep). With clipping a straddler's
 // events go to neither list; without, one-sided references' events to their side and every
 // other to both. On the split axis the kept references are counted and, given `straddlers`,
 // the references whose start lies on both sides written there (in event order).
@@ -978,7 +979,7 @@ struct SplitCounts {
   const __m512i three = _mm512_set1_epi64(3), end_type = _mm512_set1_epi64(kEnd);
   const __m512i start_type = _mm512_set1_epi64(kStart);
   for (std::size_t i = 0; i < size; i += 8) {
-    const __mmask8 live = size - i >= 8 ? __mmask8{0xFF} : static_cast<__mmask8>((1u << (size - i)) - 1u);
+    const __mmask8 live = lanes8(size - i);
     const __m512i v = _mm512_maskz_loadu_epi64(live, ev + i);
     const __m512i ref = _mm512_maskz_srli_epi64(0xFF, v, 34);  // code >> 2, code in the high half
     const __m256i where = _mm512_mask_i64gather_epi32(_mm256_setzero_si256(), live, ref, side, 4);
@@ -1043,6 +1044,13 @@ class MaskBuilder {
 
  private:
   static constexpr std::size_t kNone = ~std::size_t{0};
+
+  // The index of an axis's first plane above `x`.
+  static std::uint32_t first_plane_above(const Scratch::MaskPlanes& planes, float x) {
+    return static_cast<std::uint32_t>(
+        std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), x) -
+        planes.pos.begin());
+  }
 
   template <int W>
   void run_words(std::size_t index, const Event* const ev[3], const std::size_t len[3], const Aabb& box, int depth) {
@@ -1156,13 +1164,7 @@ class MaskBuilder {
     // whose box starts at the chosen plane: its first plane above is the next one (the
     // planes' positions ascend strictly).
     std::uint32_t root_from[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
-      root_from[axis] = static_cast<std::uint32_t>(
-          std::upper_bound(planes.pos.begin(), planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size),
-                           root_box.lo[axis]) -
-          planes.pos.begin());
-    }
+    for (int axis = 0; axis < 3; ++axis) root_from[axis] = first_plane_above(s_.mask_planes[axis], root_box.lo[axis]);
     stack.push_back(task_of(root_mask, root, root_depth, root_box, root_from));
     while (!stack.empty()) {
       const Scratch::MaskTask task = stack.back();
@@ -1183,10 +1185,7 @@ class MaskBuilder {
           const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
           const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
           const std::size_t from = task.from[axis];
-          RTC_DCHECK(from == static_cast<std::size_t>(std::upper_bound(planes.pos.begin(),
-                                                                       planes.pos.begin() + static_cast<std::ptrdiff_t>(planes.size), lo) -
-                                                      planes.pos.begin()),
-                     "bit-mask stage: a node's first plane");
+          RTC_DCHECK(from == first_plane_above(planes, lo), "bit-mask stage: a node's first plane");
           if constexpr (kVector) {
             scan_planes_avx512<W>(planes, from, hi, mask, sah, axis, split, chosen);
           } else {
@@ -1265,7 +1264,7 @@ class BlockBuilder {
       Event* ev = s_.arena.at(off[axis]);
       std::size_t m = 0;
       for (std::size_t i = 0; i < n; ++i) m += add_events(ev + m, bounds[i], axis, static_cast<std::uint32_t>(i));
-      sort_events(ev, m, s_.sort_buffer, ctx_.options.simd && sweep_avx512());
+      sort_events(ev, m, s_.sort_buffer, ctx_.avx512);
       len[axis] = m;
     }
     s_.restore.clear();
@@ -1321,7 +1320,7 @@ class BlockBuilder {
     // (start < end for a non-planar reference), so the start sets "both" or "right" first.
     const float p = split.pos;
     std::uint32_t* side = s_.side.data();
-    const bool vector = ctx_.options.simd && sweep_avx512();
+    const bool vector = ctx_.avx512;
     if (vector) {
       classify_events_avx512(s_.arena.at(off[split.axis]), len[split.axis], side, p, split.planar_left);
     } else {
@@ -1725,7 +1724,7 @@ class TopBuilder {
         n_right -= b.end[axis][i];
       }
       // Equal events are interchangeable, so the sort's order among them cannot matter.
-      sort_events(ev, size, buffer, ctx_.options.simd && sweep_avx512());
+      sort_events(ev, size, buffer, ctx_.avx512);
       const SplitChoice exact = best_on_axis(ctx_.options, ev, size, n_left, n_right, box, axis, inv_area, ctx_.sah_scale);
       if (exact.cost < best[axis].cost) best[axis] = exact;
     }
@@ -2006,8 +2005,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
-  BuildContext ctx{options,      tri_box,  positions,  triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
-                   options.clip, mask_below};
+  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
+                   options.clip, mask_below, options.simd && sweep_avx512()};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
