@@ -16,6 +16,7 @@
 
 #include <glm/glm.hpp>
 
+#include "common/base/isa.h"
 #include "common/math/aabb.h"
 
 namespace rtc {
@@ -150,9 +151,14 @@ struct KdBuildOptions {
   /// events at a time, the split axis's classification and the split of a node's event lists
   /// 8 at a time, event lists under 64 sorted by rank, clipped bounds rounded outward by
   /// conversions with embedded rounding; with AVX-512 VPOPCNTDQ: the bit-mask stage's plane
-  /// scan, 8 planes at a time). False: the scalar code, which builds the same tree (tested);
-  /// for tests and A/B runs.
+  /// scan, 8 planes at a time; with AVX2 and no AVX-512: the event sweep's SAH 8 events at a
+  /// time and the bit-mask stage's plane scan 8 planes at a time, popcounts by nibble lookup).
+  /// False: the scalar code, which builds the same tree (tested); for tests and A/B runs.
   bool simd = true;
+  /// The widest vector code `simd` may take: Avx512 (the default) lets the CPU decide; Avx2
+  /// keeps an AVX-512 CPU on the AVX2 code that CPUs without AVX-512 run (the tests build with
+  /// both and compare); Sse42 is `simd` off.
+  Isa simd_limit = Isa::Avx512;
 
   /// mask_below with -1 resolved. With clipping 64: larger bit-mask subtrees lose the clipping
   /// below their roots, and at 128 spd-tree's 16-wide primary rays were 0.95x (builds 0.90x,

@@ -45,6 +45,14 @@ struct Event {
 static_assert(sizeof(Event) == 8);
 
 enum Side : std::uint8_t { kLeft = 0, kRight = 1, kBoth = 2 };
+// Whether a reference of side s is kept by the left or right child, as arithmetic on the
+// encoding above (comparisons compile to branches that the sides' random order mispredicts):
+// with clipping only one-sided references (a straddler's events are made anew), without every
+// reference not wholly on the other side.
+[[gnu::always_inline]] inline std::size_t only_left(std::uint32_t s) { return 1u >> s; }
+[[gnu::always_inline]] inline std::size_t only_right(std::uint32_t s) { return s & 1u; }
+[[gnu::always_inline]] inline std::size_t not_right(std::uint32_t s) { return ~s & 1u; }
+[[gnu::always_inline]] inline std::size_t not_left(std::uint32_t s) { return (s + 1u) >> 1; }
 
 struct SplitChoice {
   int axis = -1;
@@ -77,16 +85,22 @@ struct BuildContext {
   float sah_scale = 1.0f;       // see sah_scale_for()
   bool clip = true;             // KdBuildOptions::clip
   std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most kMaxMaskRefs
-  // KdBuildOptions::simd where the CPU has AVX-512 (sweep_avx512): the event sweep's split,
-  // classification and small sorts and TriangleClip's rounding take their vector code.
+  // The vector code the build takes (build_isa()). avx512: the event sweep's SAH, split,
+  // classification and small sorts and TriangleClip's rounding take their AVX-512 code (the
+  // bit-mask stage's plane scan too, with VPOPCNTDQ); avx2 (also set with avx512): their AVX2
+  // code where they have one.
   bool avx512 = false;
+  bool avx2 = false;
 };
 
-// Whether best_on_axis_avx512 and the build's other AVX-512 code run here (AVX-512 F, DQ, VL,
-// BW, as the 16-wide tracer).
-bool sweep_avx512() {
-  static const bool ok = cpu_supports(Isa::Avx512);
-  return ok;
+// The vector code a build takes: KdBuildOptions::simd, up to its simd_limit, as far as the CPU
+// goes (AVX-512 F, DQ, VL and BW or AVX2 with FMA and BMI2, as the tracer's kernels).
+Isa build_isa(const KdBuildOptions& options) {
+  static const bool avx512 = cpu_supports(Isa::Avx512), avx2 = cpu_supports(Isa::Avx2);
+  if (!options.simd) return Isa::Sse42;
+  if (options.simd_limit >= Isa::Avx512 && avx512) return Isa::Avx512;
+  if (options.simd_limit >= Isa::Avx2 && avx2) return Isa::Avx2;
+  return Isa::Sse42;
 }
 
 // The lanes of an 8-wide step with `left` elements still to go (all 8 from 8 on).
@@ -561,15 +575,64 @@ void sort_distinct(std::vector<std::uint32_t>& v, std::size_t limit, std::vector
   std::memcpy(ev, out, n * sizeof(Event));
 }
 
+// sort_small_events_avx512 on AVX2: the 64-bit keys compared as signed (their top bit flipped),
+// 8 events against one per step in two vectors of 4 (equal keys ranked in input order); the
+// ranks then place the events.
+[[gnu::target("avx2")]] void sort_small_events_avx2(Event* ev, std::size_t n) {
+  alignas(32) std::int64_t key[64];
+  alignas(32) std::int64_t rank[64];
+  alignas(32) Event out[64];
+  const std::size_t padded = (n + 7) & ~std::size_t{7};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t k = std::uint64_t{sort_key(ev[i].pos)} << 32 | ev[i].code;
+    key[i] = static_cast<std::int64_t>(k ^ (std::uint64_t{1} << 63));
+  }
+  for (std::size_t i = n; i < padded; ++i) key[i] = std::numeric_limits<std::int64_t>::max();  // ranks unused
+  for (std::size_t i = 0; i < padded; i += 8) {
+    const __m256i k0 = _mm256_load_si256(reinterpret_cast<const __m256i*>(key + i));
+    const __m256i k1 = _mm256_load_si256(reinterpret_cast<const __m256i*>(key + i + 4));
+    // Counted as (their key greater) - 1 per event before these, when equal too; (their key
+    // greater) among these, when equal too for lanes after the event; (their key greater) after.
+    __m256i r0 = _mm256_set1_epi64x(static_cast<long long>(i)), r1 = r0;
+    for (std::size_t j = 0; j < i; ++j) {
+      const __m256i b = _mm256_set1_epi64x(key[j]);
+      r0 = _mm256_add_epi64(r0, _mm256_cmpgt_epi64(b, k0));
+      r1 = _mm256_add_epi64(r1, _mm256_cmpgt_epi64(b, k1));
+    }
+    const __m256i lane0 = _mm256_setr_epi64x(0, 1, 2, 3), lane1 = _mm256_setr_epi64x(4, 5, 6, 7);
+    for (std::size_t j = i; j < std::min(n, i + 8); ++j) {
+      const __m256i b = _mm256_set1_epi64x(key[j]);
+      const __m256i at = _mm256_set1_epi64x(static_cast<long long>(j - i));
+      const __m256i tie0 = _mm256_and_si256(_mm256_cmpeq_epi64(k0, b), _mm256_cmpgt_epi64(lane0, at));
+      const __m256i tie1 = _mm256_and_si256(_mm256_cmpeq_epi64(k1, b), _mm256_cmpgt_epi64(lane1, at));
+      r0 = _mm256_sub_epi64(r0, _mm256_or_si256(_mm256_cmpgt_epi64(k0, b), tie0));
+      r1 = _mm256_sub_epi64(r1, _mm256_or_si256(_mm256_cmpgt_epi64(k1, b), tie1));
+    }
+    for (std::size_t j = i + 8; j < n; ++j) {
+      const __m256i b = _mm256_set1_epi64x(key[j]);
+      r0 = _mm256_sub_epi64(r0, _mm256_cmpgt_epi64(k0, b));
+      r1 = _mm256_sub_epi64(r1, _mm256_cmpgt_epi64(k1, b));
+    }
+    _mm256_store_si256(reinterpret_cast<__m256i*>(rank + i), r0);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(rank + i + 4), r1);
+  }
+  for (std::size_t i = 0; i < n; ++i) out[rank[i]] = ev[i];
+  std::memcpy(ev, out, n * sizeof(Event));
+}
+
 // Sorts events by position: LSD radix sort over the key bits that differ between events (a
 // small node's positions share their top bits), in 1 to 4 digits of at most 11 bits, as many
 // and as wide as cost least for this many events (each digit costs a pass over the events and
 // one over its buckets: a small list sorts on narrow digits). Stable, so the result depends
-// only on the input order, whatever the digits. Below 64 events: by (position, code), on AVX-512
-// (`vector`) by rank, else with std::sort on 64-bit keys; the same order.
-void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vector) {
-  if (n < 64 && vector) {
+// only on the input order, whatever the digits. Below 64 events: by (position, code), with
+// AVX-512 or AVX2 (BuildContext) by rank, else with std::sort on 64-bit keys; the same order.
+void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const BuildContext& ctx) {
+  if (n < 64 && ctx.avx512) {
     sort_small_events_avx512(ev, n);
+    return;
+  }
+  if (n < 64 && ctx.avx2) {
+    sort_small_events_avx2(ev, n);
     return;
   }
   if (n < 64) {
@@ -653,6 +716,17 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vect
     n_left += n_start + n_planar;
   }
   return i;
+}
+
+// The position of the group of equal positions that ends at ev[last], as sweep_groups takes it:
+// its first event's. Equal positions have equal bits except +0 and -0, which may share a group
+// where events hold -0 (TopBuilder::refine's window takes positions as they are); the sort
+// puts -0 first.
+[[gnu::always_inline]] inline float group_pos(const Event* ev, std::size_t last) {
+  if (ev[last].pos != 0.0f) return ev[last].pos;
+  std::size_t first = last;
+  while (first > 0 && ev[first - 1].pos == 0.0f) --first;
+  return ev[first].pos;
 }
 
 // sweep_groups 16 events at a time. An event ends its group where the next event's position
@@ -768,7 +842,8 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vect
         for (unsigned m = better; m != 0; m &= m - 1) {
           const int j = std::countr_zero(m);
           if (costs[j] < best.cost) {
-            best = SplitChoice{axis, ev[i + static_cast<std::size_t>(j)].pos, ((planar_left >> j) & 1u) != 0, costs[j]};
+            best = SplitChoice{axis, group_pos(ev, i + static_cast<std::size_t>(j)), ((planar_left >> j) & 1u) != 0,
+                               costs[j]};
           }
         }
       }
@@ -789,14 +864,152 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, bool vect
   return best;
 }
 
+// best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
+// sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
+// alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
+// order, the same scalar pick of the groups that beat the split so far. The last, partial 8
+// are copied out with padding events (NaN positions, type 3, which is no event type).
+#define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
+#define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
+[[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
+                                                           std::size_t n_left, std::size_t n_right, int axis) {
+  SplitChoice best;
+  const __m256i deinterleave = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  const __m256i next_lane = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
+  const __m256i previous_lane = _mm256_setr_epi32(0, 0, 1, 2, 3, 4, 5, 6);
+  const __m256i zero_i = _mm256_setzero_si256(), one = _mm256_set1_epi32(1), three = _mm256_set1_epi32(3);
+  const __m256i end_type = _mm256_set1_epi32(kEnd), planar_type = _mm256_set1_epi32(kPlanar);
+  const __m256i start_type = _mm256_set1_epi32(kStart), low10 = _mm256_set1_epi32(0x3FF);
+  const __m256i planar_one = _mm256_set1_epi32(1 << 10), end_one = _mm256_set1_epi32(1 << 20);
+  const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
+  const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
+  const __m256 cross = _mm256_set1_ps(sah.cross_), two = _mm256_set1_ps(2.0f);
+  const __m256 k_t = _mm256_set1_ps(sah.k_t_), k_i = _mm256_set1_ps(sah.k_i_), bonus = _mm256_set1_ps(sah.bonus_);
+  const __m256 zero = _mm256_setzero_ps();
+  const float nan_value = std::numeric_limits<float>::quiet_NaN();
+  int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
+  int group_left = 0, group_planar = 0;
+  float prev = nan_value;
+  alignas(32) Event tail[8];
+  for (std::size_t i = 0; i < size; i += 8) {
+    const std::size_t rest = size - i;
+    const Event* e = ev + i;
+    unsigned live = 0xFF;
+    if (rest < 8) {
+      for (std::size_t j = 0; j < 8; ++j) tail[j] = j < rest ? e[j] : Event{nan_value, 3u};
+      e = tail;
+      live = (1u << rest) - 1u;
+    }
+    const __m256i* in = reinterpret_cast<const __m256i*>(e);
+    const __m256i a = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(in), deinterleave);
+    const __m256i b = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(in + 1), deinterleave);
+    const __m256 pos = _mm256_castsi256_ps(_mm256_permute2x128_si256(a, b, 0x20));
+    const __m256i type = _mm256_and_si256(_mm256_permute2x128_si256(a, b, 0x31), three);
+    const float next_pos = rest > 8 ? ev[i + 8].pos : nan_value;
+    const __m256 next = _mm256_blend_ps(_mm256_permutevar8x32_ps(pos, next_lane), _mm256_set1_ps(next_pos), 0x80);
+    const __m256 before = _mm256_blend_ps(_mm256_permutevar8x32_ps(pos, previous_lane), _mm256_set1_ps(prev), 0x01);
+    const __m256 start_v = _mm256_cmp_ps(pos, before, _CMP_NEQ_UQ);
+    const unsigned group_end = live & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(pos, next, _CMP_NEQ_UQ)));
+    const unsigned group_start = live & static_cast<unsigned>(_mm256_movemask_ps(start_v));
+    const __m256i planar_v = _mm256_cmpeq_epi32(type, planar_type);
+    const __m256i sp_v = _mm256_or_si256(_mm256_cmpeq_epi32(type, start_type), planar_v);
+    const __m256i ep_v = _mm256_or_si256(_mm256_cmpeq_epi32(type, end_type), planar_v);
+    // Inclusive prefix sums over the 8: starts and planars in bits 0-9, planars in 10-19, ends
+    // and planars in 20-29.
+    __m256i sums = _mm256_add_epi32(_mm256_and_si256(sp_v, one), _mm256_and_si256(planar_v, planar_one));
+    sums = _mm256_add_epi32(sums, _mm256_and_si256(ep_v, end_one));
+    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP(sums, 1));
+    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP(sums, 2));
+    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP4(sums));
+    const __m256i sp_incl = _mm256_and_si256(sums, low10);
+    const __m256i planar_incl =
+        _mm256_add_epi32(_mm256_set1_epi32(planar_base), _mm256_and_si256(_mm256_srli_epi32(sums, 10), low10));
+    const __m256i ep_incl = _mm256_srli_epi32(sums, 20);
+    // Before each event: n_left and the planars so far (sp_v and planar_v are -1 where set);
+    // kept at the group starts and carried up by a running maximum.
+    const __m256i left_before = _mm256_add_epi32(_mm256_add_epi32(_mm256_set1_epi32(left_base), sp_incl), sp_v);
+    const __m256i planar_before = _mm256_add_epi32(planar_incl, planar_v);
+    const __m256i start_i = _mm256_castps_si256(start_v);
+    __m256i gl = _mm256_and_si256(start_i, left_before);
+    __m256i gp = _mm256_and_si256(start_i, planar_before);
+    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 1));
+    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 1));
+    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 2));
+    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 2));
+    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP4(gl));
+    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP4(gp));
+    const __m256i left = _mm256_max_epi32(gl, _mm256_set1_epi32(group_left));  // n_left before the group
+    gp = _mm256_max_epi32(gp, _mm256_set1_epi32(group_planar));
+    const __m256i planar = _mm256_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
+    const __m256i right = _mm256_sub_epi32(_mm256_set1_epi32(right_base), ep_incl);  // n_right after it
+    const __m256 in_box = _mm256_and_ps(_mm256_cmp_ps(pos, box_lo, _CMP_GT_OQ), _mm256_cmp_ps(pos, box_hi, _CMP_LT_OQ));
+    const unsigned inside = group_end & static_cast<unsigned>(_mm256_movemask_ps(in_box));
+    if (inside != 0) {
+      const __m256 has_planar =
+          _mm256_castsi256_ps(_mm256_xor_si256(_mm256_cmpeq_epi32(planar, zero_i), _mm256_set1_epi32(-1)));
+      const __m256 area_left = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
+      const __m256 area_right = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(box_hi, pos), scale), perimeter)));
+      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
+      __m256 na = _mm256_cvtepi32_ps(_mm256_add_epi32(left, planar));
+      __m256 nb = _mm256_cvtepi32_ps(right);
+      __m256 c = _mm256_add_ps(
+          k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, na), _mm256_mul_ps(area_right, nb))));
+      __m256 empty_side = _mm256_or_ps(_mm256_cmp_ps(na, zero, _CMP_EQ_OQ), _mm256_cmp_ps(nb, zero, _CMP_EQ_OQ));
+      const __m256 cost_left = _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side);
+      na = _mm256_cvtepi32_ps(left);
+      nb = _mm256_cvtepi32_ps(_mm256_add_epi32(right, planar));
+      c = _mm256_add_ps(k_t,
+                        _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, na), _mm256_mul_ps(area_right, nb))));
+      empty_side = _mm256_or_ps(_mm256_cmp_ps(na, zero, _CMP_EQ_OQ), _mm256_cmp_ps(nb, zero, _CMP_EQ_OQ));
+      const __m256 cost_right =
+          _mm256_blendv_ps(cost_left, _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side), has_planar);
+      const __m256 planar_left_v = _mm256_cmp_ps(cost_left, cost_right, _CMP_LE_OQ);
+      const __m256 cost = _mm256_blendv_ps(cost_right, cost_left, planar_left_v);
+      const unsigned better =
+          inside & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(cost, _mm256_set1_ps(best.cost), _CMP_LT_OQ)));
+      if (better != 0) {
+        const unsigned planar_left = static_cast<unsigned>(_mm256_movemask_ps(planar_left_v));
+        alignas(32) float costs[8];
+        _mm256_store_ps(costs, cost);
+        for (unsigned m = better; m != 0; m &= m - 1) {
+          const int j = std::countr_zero(m);
+          if (costs[j] < best.cost) {
+            best = SplitChoice{axis, group_pos(ev, i + static_cast<std::size_t>(j)), ((planar_left >> j) & 1u) != 0,
+                               costs[j]};
+          }
+        }
+      }
+    }
+    // The open group's counts from the masks (the next 8 need not wait for this one's maxima).
+    const unsigned sp = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(sp_v)));
+    const unsigned is_planar = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(planar_v)));
+    const unsigned ep = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(ep_v)));
+    if (group_start != 0) {
+      const unsigned before_last = (1u << (31 - std::countl_zero(group_start))) - 1u;
+      group_left = left_base + std::popcount(sp & before_last);
+      group_planar = planar_base + std::popcount(is_planar & before_last);
+    }
+    left_base += std::popcount(sp);
+    planar_base += std::popcount(is_planar);
+    right_base -= std::popcount(ep);
+    if (rest > 8) prev = ev[i + 7].pos;
+  }
+  return best;
+}
+#undef RTC_SHIFT_UP4
+#undef RTC_SHIFT_UP
+
 // One sweep over an axis's sorted events. The events may be a window of the axis: `n_left`
 // references start and `n_right` end beyond everything before it. With options.simd, 16 events
 // at a time where the CPU has AVX-512; the same split either way.
-SplitChoice best_on_axis(const KdBuildOptions& options, const Event* ev, std::size_t size, std::size_t n_left,
-                         std::size_t n_right, const Aabb& box, int axis, float inv_area, float scale) {
+SplitChoice best_on_axis(const BuildContext& ctx, const Event* ev, std::size_t size, std::size_t n_left,
+                         std::size_t n_right, const Aabb& box, int axis, float inv_area) {
   if (!(box.hi[axis] > box.lo[axis])) return SplitChoice{};
-  const SahAxis sah(options, box, axis, inv_area, scale);
-  if (options.simd && sweep_avx512()) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
+  const SahAxis sah(ctx.options, box, axis, inv_area, ctx.sah_scale);
+  if (ctx.avx512) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
+  if (ctx.avx2) return best_on_axis_avx2(sah, ev, size, n_left, n_right, axis);
   SplitChoice best;
   sweep_groups(ev, 0, size, size, sah, axis, n_left, n_right, best);
   return best;
@@ -906,6 +1119,108 @@ template <int W>
       const __m256 best = _mm256_mask_blend_ps(planar_left, cost_right, cost_left);
       unsigned better = valid & _mm256_cmp_ps_mask(best, _mm256_set1_ps(split.cost), _CMP_LT_OQ);
       if (better != 0) {
+        alignas(32) float costs[8], at[8];
+        _mm256_store_ps(costs, best);
+        _mm256_store_ps(at, pos);
+        for (; better != 0; better &= better - 1) {
+          const int j = std::countr_zero(better);
+          if (costs[j] < split.cost) {
+            split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
+            chosen = i + static_cast<std::size_t>(j);
+          }
+        }
+      }
+    }
+    if (in_range != 0xFF) return;
+  }
+}
+
+// scan_planes_avx512 for CPUs with AVX2 but without AVX-512 VPOPCNTDQ: the popcounts of 4
+// planes' words at a time by nibble lookups (PSHUFB) summed per plane (PSADBW), two such halves
+// packed into 8 counts, then the same float operations in SahAxis::cost()'s order and the same
+// scalar pick of the planes that beat the split so far.
+template <int W>
+[[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i mask_counts_avx2(
+    const std::vector<std::uint64_t> (&words)[kMaskWords], std::size_t i, const __m256i* m) {
+  const __m256i lut = _mm256_setr_epi8(0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4, 0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2,
+                                       3, 2, 3, 3, 4);
+  const __m256i low4 = _mm256_set1_epi8(0x0F);
+  __m256i bytes = _mm256_setzero_si256();  // at most 8 per word and byte
+  for (int w = 0; w < W; ++w) {
+    const __m256i v = _mm256_and_si256(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(words[w].data() + i)), m[w]);
+    const __m256i low = _mm256_shuffle_epi8(lut, _mm256_and_si256(v, low4));
+    const __m256i high = _mm256_shuffle_epi8(lut, _mm256_and_si256(_mm256_srli_epi16(v, 4), low4));
+    bytes = _mm256_add_epi8(bytes, _mm256_add_epi8(low, high));
+  }
+  return _mm256_sad_epu8(bytes, _mm256_setzero_si256());
+}
+
+// Planes i..i+7's counts as 8 32-bit lanes (each below 2^31).
+template <int W>
+[[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i mask_counts8_avx2(
+    const std::vector<std::uint64_t> (&words)[kMaskWords], std::size_t i, const __m256i* m) {
+  const __m256i lo = mask_counts_avx2<W>(words, i, m), hi = mask_counts_avx2<W>(words, i + 4, m);
+  return _mm256_permutevar8x32_epi32(_mm256_blend_epi32(lo, _mm256_slli_epi64(hi, 32), 0xAA),
+                                     _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));
+}
+
+template <int W>
+[[gnu::target("avx2,popcnt")]] void scan_planes_avx2(const Scratch::MaskPlanes& planes, std::size_t from, float hi,
+                                                   const MaskBits<W>& mask, const SahAxis& sah, int axis,
+                                                   SplitChoice& split, std::size_t& chosen) {
+  __m256i m[W];
+  for (int w = 0; w < W; ++w) m[w] = _mm256_set1_epi64x(static_cast<long long>(mask.w[w]));
+  const __m256 v_hi = _mm256_set1_ps(hi);
+  const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
+  const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
+  const __m256 cross = _mm256_set1_ps(sah.cross_), two = _mm256_set1_ps(2.0f);
+  const __m256 k_t = _mm256_set1_ps(sah.k_t_), k_i = _mm256_set1_ps(sah.k_i_), bonus = _mm256_set1_ps(sah.bonus_);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256i zero_i = _mm256_setzero_si256();
+  for (std::size_t i = from;; i += 8) {  // the padding at +inf ends it
+    const __m256 pos = _mm256_loadu_ps(planes.pos.data() + i);
+    const unsigned in_range = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(pos, v_hi, _CMP_LT_OQ)));
+    if (in_range == 0) return;
+    __m256i owned_lo = zero_i, owned_hi = zero_i;
+    for (int w = 0; w < W; ++w) {
+      const __m256i* o = reinterpret_cast<const __m256i*>(planes.owners[w].data() + i);
+      owned_lo = _mm256_or_si256(owned_lo, _mm256_and_si256(_mm256_loadu_si256(o), m[w]));
+      owned_hi = _mm256_or_si256(owned_hi, _mm256_and_si256(_mm256_loadu_si256(o + 1), m[w]));
+    }
+    const unsigned unowned =
+        static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpeq_epi64(owned_lo, zero_i)))) |
+        static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpeq_epi64(owned_hi, zero_i)))) << 4;
+    const unsigned valid = in_range & ~unowned;
+    if (valid != 0) {
+      const __m256i n_left = mask_counts8_avx2<W>(planes.below, i, m);
+      const __m256i n_right = mask_counts8_avx2<W>(planes.above, i, m);
+      const __m256i n_planar = mask_counts8_avx2<W>(planes.planar, i, m);
+      const __m256 has_planar =
+          _mm256_castsi256_ps(_mm256_xor_si256(_mm256_cmpeq_epi32(n_planar, zero_i), _mm256_set1_epi32(-1)));
+      const __m256 area_left = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
+      const __m256 area_right = _mm256_mul_ps(
+          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(box_hi, pos), scale), perimeter)));
+      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
+      __m256 a = _mm256_cvtepi32_ps(_mm256_add_epi32(n_left, n_planar));
+      __m256 b = _mm256_cvtepi32_ps(n_right);
+      __m256 c = _mm256_add_ps(
+          k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
+      __m256 empty_side = _mm256_or_ps(_mm256_cmp_ps(a, zero, _CMP_EQ_OQ), _mm256_cmp_ps(b, zero, _CMP_EQ_OQ));
+      const __m256 cost_left = _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side);
+      a = _mm256_cvtepi32_ps(n_left);
+      b = _mm256_cvtepi32_ps(_mm256_add_epi32(n_right, n_planar));
+      c = _mm256_add_ps(k_t,
+                        _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
+      empty_side = _mm256_or_ps(_mm256_cmp_ps(a, zero, _CMP_EQ_OQ), _mm256_cmp_ps(b, zero, _CMP_EQ_OQ));
+      const __m256 cost_right =
+          _mm256_blendv_ps(cost_left, _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side), has_planar);
+      const __m256 planar_left_v = _mm256_cmp_ps(cost_left, cost_right, _CMP_LE_OQ);
+      const __m256 best = _mm256_blendv_ps(cost_right, cost_left, planar_left_v);
+      unsigned better =
+          valid & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(best, _mm256_set1_ps(split.cost), _CMP_LT_OQ)));
+      if (better != 0) {
+        const unsigned planar_left = static_cast<unsigned>(_mm256_movemask_ps(planar_left_v));
         alignas(32) float costs[8], at[8];
         _mm256_store_ps(costs, best);
         _mm256_store_ps(at, pos);
@@ -1044,6 +1359,7 @@ class MaskBuilder {
 
  private:
   static constexpr std::size_t kNone = ~std::size_t{0};
+  enum Scan { kScanScalar, kScanAvx2, kScanAvx512 };
 
   // The index of an axis's first plane above `x`.
   static std::uint32_t first_plane_above(const Scratch::MaskPlanes& planes, float x) {
@@ -1123,8 +1439,10 @@ class MaskBuilder {
       planes.size = k;
       planes.finish<W>();
     }
-    if (ctx_.options.simd && mask_scan_avx512()) {
+    if (ctx_.avx512 && mask_scan_avx512()) {
       build_vector<W>(index, all, box, depth);
+    } else if (ctx_.avx2) {
+      build_avx2<W>(index, all, box, depth);
     } else if (__builtin_cpu_supports("popcnt")) {
       build_popcnt<W>(index, all, box, depth);
     } else {
@@ -1134,21 +1452,25 @@ class MaskBuilder {
 
   template <int W>
   [[gnu::target("popcnt")]] void build_vector(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
-    build<true, W>(index, mask, box, depth);
+    build<kScanAvx512, W>(index, mask, box, depth);
+  }
+  template <int W>
+  [[gnu::target("popcnt")]] void build_avx2(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
+    build<kScanAvx2, W>(index, mask, box, depth);
   }
   template <int W>
   [[gnu::target("popcnt")]] void build_popcnt(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
-    build<false, W>(index, mask, box, depth);
+    build<kScanScalar, W>(index, mask, box, depth);
   }
   template <int W>
   void build_portable(std::size_t index, const MaskBits<W>& mask, const Aabb& box, int depth) {
-    build<false, W>(index, mask, box, depth);
+    build<kScanScalar, W>(index, mask, box, depth);
   }
 
   // Depth first with an explicit stack (left child popped first), so children are placed
-  // exactly where BlockBuilder::node's recursion would place them. kVector: each axis's planes
-  // are scanned by scan_planes_avx512, else by scan_planes; the two choose the same planes.
-  template <bool kVector, int W>
+  // exactly where BlockBuilder::node's recursion would place them. kScan: each axis's planes
+  // are scanned by scan_planes_avx512, scan_planes_avx2 or scan_planes; all choose the same planes.
+  template <Scan kScan, int W>
   [[gnu::always_inline]] inline void build(std::size_t root, const MaskBits<W>& root_mask, const Aabb& root_box,
                                            int root_depth) {
     using Bits = MaskBits<W>;
@@ -1186,8 +1508,10 @@ class MaskBuilder {
           const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
           const std::size_t from = task.from[axis];
           RTC_DCHECK(from == first_plane_above(planes, lo), "bit-mask stage: a node's first plane");
-          if constexpr (kVector) {
+          if constexpr (kScan == kScanAvx512) {
             scan_planes_avx512<W>(planes, from, hi, mask, sah, axis, split, chosen);
+          } else if constexpr (kScan == kScanAvx2) {
+            scan_planes_avx2<W>(planes, from, hi, mask, sah, axis, split, chosen);
           } else {
             scan_planes<W>(planes, from, hi, mask, sah, axis, split, chosen);
           }
@@ -1264,7 +1588,7 @@ class BlockBuilder {
       Event* ev = s_.arena.at(off[axis]);
       std::size_t m = 0;
       for (std::size_t i = 0; i < n; ++i) m += add_events(ev + m, bounds[i], axis, static_cast<std::uint32_t>(i));
-      sort_events(ev, m, s_.sort_buffer, ctx_.avx512);
+      sort_events(ev, m, s_.sort_buffer, ctx_);
       len[axis] = m;
     }
     s_.restore.clear();
@@ -1306,7 +1630,7 @@ class BlockBuilder {
       for (int axis = 0; axis < 3; ++axis) {
         // The earliest axis wins a tie.
         const SplitChoice c =
-            best_on_axis(options, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area, ctx_.sah_scale);
+            best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
         if (c.cost < split.cost) split = c;
       }
     }
@@ -1324,19 +1648,19 @@ class BlockBuilder {
     if (vector) {
       classify_events_avx512(s_.arena.at(off[split.axis]), len[split.axis], side, p, split.planar_left);
     } else {
+      // A start writes kRight (at or above p) or kBoth, an end at or below p kLeft (above p
+      // it writes back what its start wrote), a planar event its side; as masks, not branches.
+      static_assert(kLeft == 0 && kRight == 1 && kBoth == 2);
       const Event* ev = s_.arena.at(off[split.axis]);
+      const std::uint32_t planar_left = split.planar_left;
       for (std::size_t i = 0; i < len[split.axis]; ++i) {
         const Event e = ev[i];
-        switch (e.type()) {
-          case kStart:
-            side[e.ref()] = e.pos >= p ? kRight : kBoth;
-            break;
-          case kEnd:
-            if (e.pos <= p) side[e.ref()] = kLeft;
-            break;
-          default:
-            side[e.ref()] = (e.pos < p || (e.pos == p && split.planar_left)) ? kLeft : kRight;
-        }
+        const std::uint32_t t = e.type(), ref = e.ref();
+        const std::uint32_t at_or_above = e.pos >= p, at_or_below = e.pos <= p;
+        const std::uint32_t planar_side = 1u - ((e.pos < p) | ((e.pos == p) & planar_left));
+        const std::uint32_t end_side = side[ref] & (at_or_below - 1u);
+        side[ref] = ((2u - at_or_above) & (0u - (t == kStart))) | (planar_side & (0u - (t == kPlanar))) |
+                    (end_side & (0u - (t == kEnd)));
       }
     }
     Aabb left_box = box, right_box = box;
@@ -1390,8 +1714,8 @@ class BlockBuilder {
           const std::uint32_t s = side[e.ref()];
           *l = e;
           *r = e;
-          l += s == kLeft;
-          r += s == kRight;
+          l += only_left(s);
+          r += only_right(s);
         }
       } else {
         for (std::size_t i = 0; i < size; ++i) {
@@ -1399,8 +1723,8 @@ class BlockBuilder {
           const std::uint32_t s = side[e.ref()];
           *l = e;
           *r = e;
-          l += s != kRight;
-          r += s != kLeft;
+          l += not_right(s);
+          r += not_left(s);
         }
       }
       n_kept_left[axis] = static_cast<std::size_t>(l - kept_left.data());
@@ -1450,8 +1774,8 @@ class BlockBuilder {
         n_new_left += add_events(new_left.data() + n_new_left, clip_left[k], axis, straddlers[k]);
         n_new_right += add_events(new_right.data() + n_new_right, clip_right[k], axis, straddlers[k]);
       }
-      sort_events(new_left.data(), n_new_left, s_.sort_buffer, vector);
-      sort_events(new_right.data(), n_new_right, s_.sort_buffer, vector);
+      sort_events(new_left.data(), n_new_left, s_.sort_buffer, ctx_);
+      sort_events(new_right.data(), n_new_right, s_.sort_buffer, ctx_);
       const Event* kept_left = s_.kept_left[axis].data();
       const Event* kept_right = s_.kept_right[axis].data();
       Event* l_end = std::merge(kept_left, kept_left + n_kept_left[axis], new_left.data(),
@@ -1724,8 +2048,8 @@ class TopBuilder {
         n_right -= b.end[axis][i];
       }
       // Equal events are interchangeable, so the sort's order among them cannot matter.
-      sort_events(ev, size, buffer, ctx_.avx512);
-      const SplitChoice exact = best_on_axis(ctx_.options, ev, size, n_left, n_right, box, axis, inv_area, ctx_.sah_scale);
+      sort_events(ev, size, buffer, ctx_);
+      const SplitChoice exact = best_on_axis(ctx_, ev, size, n_left, n_right, box, axis, inv_area);
       if (exact.cost < best[axis].cost) best[axis] = exact;
     }
   }
@@ -2006,7 +2330,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
   BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
-                   options.clip, mask_below, options.simd && sweep_avx512()};
+                   options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;

@@ -21,11 +21,17 @@ inline double cpu_ms() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-/// Median time of `reps` calls of `fn`, in ms; `untimed` runs before each call, outside the
-/// timing (builders pass the release of the previous result there, so that freeing it is not
-/// counted as part of the next build).
+/// The median and the fastest of a set of timings, in ms.
+struct TimeStats {
+  double median_ms = 0.0;
+  double min_ms = 0.0;
+};
+
+/// Times `reps` calls of `fn`; `untimed` runs before each call, outside the timing (builders
+/// pass the release of the previous result there, so that freeing it is not counted as part
+/// of the next build).
 template <typename Fn, typename Untimed>
-double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
+TimeStats time_stats_ms(int reps, Fn&& fn, Untimed&& untimed) {
   std::vector<double> ms;
   for (int r = 0; r < reps; ++r) {
     untimed();
@@ -35,7 +41,13 @@ double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
     ms.push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
   }
   std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
+  return TimeStats{ms[ms.size() / 2], ms.front()};
+}
+
+/// Median time of `reps` calls of `fn`, in ms; `untimed` as for time_stats_ms.
+template <typename Fn, typename Untimed>
+double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
+  return time_stats_ms(reps, std::forward<Fn>(fn), std::forward<Untimed>(untimed)).median_ms;
 }
 
 /// Median time of `reps` calls of `fn`, in ms.

@@ -44,6 +44,27 @@ Soup random_soup(std::uint32_t seed, int count, float size) {
   return s;
 }
 
+// Two clusters of small random triangles, 35000 in x < -0.3 and 35000 in x > 0.3, and 30
+// copies of one large triangle in the plane x = 0 between them. The binned root's best x plane
+// is the copies' (they go to either side), and TopBuilder::refine's window around it holds only
+// their 30 planar events, all equal (a window's events carry no reference): a list under 64 with
+// equal keys, which a sort must keep whole.
+Soup walled_gap() {
+  Soup s;
+  for (const float side : {-1.0f, 1.0f}) {
+    Soup half = random_soup(side < 0.0f ? 41 : 43, 35000, 0.01f);
+    const auto base = static_cast<unsigned>(s.positions.size());
+    for (const glm::vec3& p : half.positions) s.positions.emplace_back(side * (0.65f + 0.35f * std::abs(p.x)), p.y, p.z);
+    for (const glm::uvec3& t : half.triangles) s.triangles.emplace_back(t + glm::uvec3(base));
+  }
+  const auto wall = static_cast<unsigned>(s.positions.size());
+  s.positions.emplace_back(0.0f, -1.0f, -1.0f);
+  s.positions.emplace_back(0.0f, 1.0f, -1.0f);
+  s.positions.emplace_back(0.0f, 0.0f, 1.0f);
+  for (int i = 0; i < 30; ++i) s.triangles.emplace_back(wall, wall + 1, wall + 2);
+  return s;
+}
+
 // Slivers from one vertex to random far points, each 1e-3 wide (Wald & Havran's case for
 // clipping: their boxes cover most of the scene), plus the random soup of seed 5 among them.
 Soup sliver_fan(std::uint32_t seed, int count) {
@@ -346,9 +367,19 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   EXPECT_NE(a.stats().sah_cost, b.stats().sah_cost);
 }
 
-// Builds every soup with KdBuildOptions::simd off and on (each with its K_T, the bit-mask stage
-// below `mask_below` references, with clipping and without) and requires node for node the
-// same tree.
+// The vector code this CPU can run in the build (KdBuildOptions::simd_limit): AVX2 and AVX-512
+// where it has them, so an AVX-512 machine tests the AVX2 code too.
+std::vector<Isa> build_vector_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::Avx2, Isa::Avx512}) {
+    if (cpu_supports(isa)) out.push_back(isa);
+  }
+  return out;
+}
+
+// Builds every soup with KdBuildOptions::simd off and on, the latter once per vector ISA the CPU
+// has (each with its K_T, the bit-mask stage below `mask_below` references, with clipping and
+// without) and requires node for node the same tree.
 void expect_vector_build_matches_scalar(const std::vector<std::pair<Soup, float>>& soups, int mask_below) {
   for (const auto& [s, traversal_cost] : soups) {
     for (bool clip : {true, false}) {
@@ -357,18 +388,22 @@ void expect_vector_build_matches_scalar(const std::vector<std::pair<Soup, float>
       scalar.simd = false;
       scalar.mask_below = mask_below;
       scalar.traversal_cost = traversal_cost;
-      KdBuildOptions vector = scalar;
-      vector.simd = true;
       const KdTree a = KdTree::build(s.positions, s.triangles, scalar);
-      const KdTree b = KdTree::build(s.positions, s.triangles, vector);
       ASSERT_GT(a.nodes().size(), 1u);
-      ASSERT_EQ(a.nodes().size(), b.nodes().size()) << "clip " << clip;
-      for (std::size_t i = 0; i < a.nodes().size(); ++i) {
-        ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits) << "node " << i << ", clip " << clip;
-        ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count) << "node " << i << ", clip " << clip;  // or split's bits
+      for (Isa isa : build_vector_isas()) {
+        SCOPED_TRACE(testing::Message() << "vector code up to " << isa_name(isa) << ", clip " << clip);
+        KdBuildOptions vector = scalar;
+        vector.simd = true;
+        vector.simd_limit = isa;
+        const KdTree b = KdTree::build(s.positions, s.triangles, vector);
+        ASSERT_EQ(a.nodes().size(), b.nodes().size());
+        for (std::size_t i = 0; i < a.nodes().size(); ++i) {
+          ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits) << "node " << i;
+          ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count) << "node " << i;  // or split's bits
+        }
+        ASSERT_EQ(refs_of(a), refs_of(b));
+        EXPECT_EQ(a.stats().sah_cost, b.stats().sah_cost);
       }
-      ASSERT_EQ(refs_of(a), refs_of(b));
-      EXPECT_EQ(a.stats().sah_cost, b.stats().sah_cost);
     }
   }
 }
@@ -397,11 +432,13 @@ TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
   // node the same tree: swept down to the leaves (no bit-mask stage), with clipping and
   // without; a mesh (shared vertices: groups of a few events), piles of coincident planar
   // triangles (groups of hundreds, across many 16s), signed zeros; the 70000-triangle soup
-  // also sweeps the window around its binned root's best boundary (TopBuilder::refine).
+  // also sweeps the window around its binned root's best boundary (TopBuilder::refine), and so
+  // do a 70000-triangle sphere (groups of +0 and -0 in its windows: the group's first position
+  // is the split's) and walled_gap() (a window of 30 equal events).
   ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
       {{random_soup(7, 5000, 0.05f), 3.0f}, {sphere_and_grid(24), 3.0f}, {sliver_fan(13, 3000), 3.0f},
        {planar_piles(17, 3000), 3.0f}, {random_soup(29, 300, 0.5f), 1.0f}, {signed_zero_cells(), 0.1f},
-       {random_soup(31, 70000, 0.02f), 3.0f}},
+       {random_soup(31, 70000, 0.02f), 3.0f}, {sphere_and_grid(132), 3.0f}, {walled_gap(), 3.0f}},
       0));
 }
 
