@@ -1698,17 +1698,30 @@ class BlockBuilder {
         }
         continue;
       }
-      if (axis == split.axis && ctx_.clip) {
-        for (std::size_t i = 0; i < size; ++i) {
-          if (ev[i].type() == kStart && side[ev[i].ref()] == kBoth) straddlers.push_back(ev[i].ref());
-        }
-      }
       Event* l = kept_left.data();
       Event* r = kept_right.data();
       // Every event is written to both lists and kept where its side says; a straddler's old
       // events are kept by neither. Without clipping they are kept by both, unchanged: events
-      // outside a child's box count the same as clamped ones, and stay in order.
-      if (ctx_.clip) {
+      // outside a child's box count the same as clamped ones, and stay in order. On the split
+      // axis with clipping every reference is written to the straddlers too, and kept there
+      // at its start when it lies on both sides (types and sides as arithmetic, as above).
+      static_assert(kStart == 2 && kBoth == 2);
+      if (axis == split.axis && ctx_.clip) {
+        straddlers.resize(size / 2 + 1);  // a start per reference at most
+        std::uint32_t* out = straddlers.data();
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < size; ++i) {
+          const Event e = ev[i];
+          const std::uint32_t s = side[e.ref()];
+          *l = e;
+          *r = e;
+          l += only_left(s);
+          r += only_right(s);
+          out[k] = e.ref();
+          k += (e.code >> 1) & (s >> 1) & 1u;  // a start (type 2, no type 3) of a kBoth reference
+        }
+        straddlers.resize(k);
+      } else if (ctx_.clip) {
         for (std::size_t i = 0; i < size; ++i) {
           const Event e = ev[i];
           const std::uint32_t s = side[e.ref()];

@@ -30,8 +30,11 @@ def main(path):
     scenes = sorted({k[0] for k in by}, key=lambda s: (min(by[k]["primary"]["triangles"] for k in by if k[0] == s), s))
     any_row = next(iter(rows))
     print("# rtc-bench --compare-embree on the shared scenes\n")
-    print("Regenerate with `tests/bench/run_shared_scenes.sh` (one command; 2-core AMD EPYC with AVX-512, Debian 12, "
-          "Embree 3.13.5 from Debian using AVX-512). Figures are medians over the reps "
+    # The machine as the run saw it: rtc's widest ISA there, and Embree's widest packet mode.
+    vector = "AVX-512" if any_row["isa"] == "avx512" else ("AVX2, no AVX-512" if any_row["isa"] == "avx2" else "SSE4.2")
+    embree_isa = "AVX-512" if any("embree-16" in r.get("embree", {}) for r in rows) else "AVX2"
+    print(f"Regenerate with `tests/bench/run_shared_scenes.sh` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
+          f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
           f"({any_row['reps']} here). Throughput in M rays/s. rtc's headline figure is its best ISA ({any_row['isa']}); "
           "ratio = that / Embree's fastest mode. Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
           "quality; s/M = rtc build seconds per million triangles. Full frame: rtc's Whitted renderer (shadows + "
