@@ -171,7 +171,7 @@ class TriangleClip {
     const double m = std::max({mag.x, mag.y, mag.z});
     if (!std::isfinite(m)) return false;
     pad_ = std::ldexp(m, -40);
-    vector_ = ctx.avx512;
+    vector_ = ctx.avx512 ? kRoundAvx512 : (ctx.avx2 ? kRoundAvx2 : kRoundScalar);
     glm::dvec3* poly = a_.data();
     glm::dvec3* next = b_.data();
     const glm::uvec3 idx = ctx.triangles[tri];
@@ -248,8 +248,10 @@ class TriangleClip {
   // inside `clamped` (which it returns where they leave no room).
   [[nodiscard]] Aabb round_out(const glm::dvec3& lo, const glm::dvec3& hi, const Aabb& clamped) const {
     float l[4], h[4];
-    if (vector_) {
+    if (vector_ == kRoundAvx512) {
       round_out_avx512(lo, hi, pad_, l, h);
+    } else if (vector_ == kRoundAvx2) {
+      round_out_avx2(lo, hi, pad_, l, h);
     } else {
       for (int axis = 0; axis < 3; ++axis) {
         l[axis] = static_cast<float>(lo[axis] - pad_);
@@ -286,11 +288,42 @@ class TriangleClip {
                          _mm512_maskz_cvt_roundpd_ps(0x0F, up, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC)));
   }
 
+  // round_out's scalar code on AVX2: converted to nearest, and where that went past the bound
+  // (the float read back as a double is above lo - pad or below hi + pad) stepped one float
+  // toward -inf or +inf in its bits (nextafter: from +-0 to the smallest denormal of the other
+  // sign; from +-inf to +-FLT_MAX). The same floats, as no flush-to-zero mode is ever set.
+  [[gnu::target("avx2")]] static void round_out_avx2(const glm::dvec3& lo, const glm::dvec3& hi, double pad, float l[4],
+                                                     float h[4]) {
+    const __m256d p = _mm256_set1_pd(pad);
+    const __m256d down = _mm256_sub_pd(_mm256_setr_pd(lo.x, lo.y, lo.z, 0.0), p);
+    const __m256d up = _mm256_add_pd(_mm256_setr_pd(hi.x, hi.y, hi.z, 0.0), p);
+    const __m128 fl = _mm256_cvtpd_ps(down), fh = _mm256_cvtpd_ps(up);
+    const __m128i bl = _mm_castps_si128(fl), bh = _mm_castps_si128(fh);
+    const __m128i one = _mm_set1_epi32(1);
+    // Toward -inf: the bits -1 for a positive float, +1 for a negative one; toward +inf the reverse.
+    const __m128i toward_up = _mm_or_si128(_mm_srai_epi32(bl, 31), one);
+    __m128i stepped_l = _mm_sub_epi32(bl, toward_up);
+    stepped_l = _mm_blendv_epi8(stepped_l, _mm_set1_epi32(static_cast<int>(0x80000001u)),
+                                _mm_castps_si128(_mm_cmpeq_ps(fl, _mm_setzero_ps())));
+    __m128i stepped_h = _mm_add_epi32(bh, _mm_or_si128(_mm_srai_epi32(bh, 31), one));
+    stepped_h = _mm_blendv_epi8(stepped_h, one, _mm_castps_si128(_mm_cmpeq_ps(fh, _mm_setzero_ps())));
+    // Where the float read back went past the bound: the four 64-bit compares as 32-bit lanes.
+    const __m256i low_halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0);
+    const __m128i past_l = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(
+        _mm256_castpd_si256(_mm256_cmp_pd(_mm256_cvtps_pd(fl), down, _CMP_GT_OQ)), low_halves));
+    const __m128i past_h = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(
+        _mm256_castpd_si256(_mm256_cmp_pd(_mm256_cvtps_pd(fh), up, _CMP_LT_OQ)), low_halves));
+    _mm_storeu_ps(l, _mm_castsi128_ps(_mm_blendv_epi8(bl, stepped_l, past_l)));
+    _mm_storeu_ps(h, _mm_castsi128_ps(_mm_blendv_epi8(bh, stepped_h, past_h)));
+  }
+
+  enum RoundOut { kRoundScalar, kRoundAvx2, kRoundAvx512 };
+
   std::array<glm::dvec3, kMaxVerts> a_, b_;
   glm::dvec3* poly_ = nullptr;
   int n_ = 0;
   double pad_ = 0;
-  bool vector_ = false;  // round_out_avx512 (BuildContext::avx512)
+  RoundOut vector_ = kRoundScalar;  // round_out's code (BuildContext::avx512, avx2)
 };
 
 Aabb clamp_box(const Aabb& bounds, const Aabb& box) {
