@@ -7,6 +7,7 @@ Embree's best, and full-frame ms beside the Embree renderer with the same shadin
 table of the ratios over all scenes comes first.
 """
 import json
+import os
 import sys
 from collections import defaultdict
 
@@ -33,7 +34,10 @@ def main(path):
     # The machine as the run saw it: rtc's widest ISA there, and Embree's widest packet mode.
     vector = "AVX-512" if any_row["isa"] == "avx512" else ("AVX2, no AVX-512" if any_row["isa"] == "avx2" else "SSE4.2")
     embree_isa = "AVX-512" if any("embree-16" in r.get("embree", {}) for r in rows) else "AVX2"
-    print(f"Regenerate with `tests/bench/run_shared_scenes.sh` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
+    # The command that regenerates this file: the results' name is the JSON lines' file name.
+    name = os.path.splitext(os.path.basename(path))[0]
+    command = "tests/bench/run_shared_scenes.sh" + ("" if name == "shared_scenes" else f" ../shared/scenes 5 {name}")
+    print(f"Regenerate with `{command}` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
           f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
           f"({any_row['reps']} here). Throughput in M rays/s. rtc's headline figure is its best ISA ({any_row['isa']}); "
           "ratio = that / Embree's fastest mode. Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
