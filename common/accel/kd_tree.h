@@ -152,7 +152,8 @@ struct KdBuildOptions {
   /// 8 at a time, event lists under 64 sorted by rank, clipped bounds rounded outward by
   /// conversions with embedded rounding; with AVX-512 VPOPCNTDQ: the bit-mask stage's plane
   /// scan, 8 planes at a time; with AVX2 and no AVX-512: the event sweep's SAH 8 events at a
-  /// time and the bit-mask stage's plane scan 8 planes at a time, popcounts by nibble lookup).
+  /// time, the bit-mask stage's plane scan 8 planes at a time with popcounts by nibble lookup,
+  /// event lists under 64 sorted by rank, clipped bounds rounded outward in their bits).
   /// False: the scalar code, which builds the same tree (tested); for tests and A/B runs.
   bool simd = true;
   /// The widest vector code `simd` may take: Avx512 (the default) lets the CPU decide; Avx2
