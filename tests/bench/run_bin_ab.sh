@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Two rtc-bench binaries against each other (a code change, before and after): every view of the
-# shared scene pack, one thread, 16-wide packets (avx512), process CPU time, the binaries
-# alternating view by view, ROUNDS times. Writes tests/bench/results/NAME.txt (lines as
-# run_kd_ab.sh's, with A and B for the value) and NAME.md (tests/bench/summarize_kd_ab.py: ratios
-# B over A, paired round by round).
+# shared scene pack, one thread, the widest packets the CPU has (16-wide on AVX-512; AB_ISA=avx2
+# or sse4 picks another), process CPU time, the binaries alternating view by view, ROUNDS times.
+# Writes tests/bench/results/NAME.txt (lines as run_kd_ab.sh's, with A and B for the value) and
+# NAME.md (tests/bench/summarize_kd_ab.py: ratios B over A, paired round by round).
 # Usage: tests/bench/run_bin_ab.sh BIN_A BIN_B NAME [SCENES_DIR] [ROUNDS]
 #   AB_MODES="full" (or "primary shadow full") times whole Whitted frames too (ab_loop.sh).
 #   e.g. cp build/release/tests/bench/rtc-bench /tmp/before; (change, rebuild);

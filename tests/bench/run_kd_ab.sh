@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One kd-tree build option at two values against each other: rtc-bench on every view of
-# the shared scene pack, one thread, 16-wide packets (avx512), process CPU time, the values
-# alternating view by view, ROUNDS times. Writes tests/bench/results/NAME.txt (one line per view,
+# the shared scene pack, one thread, the widest packets the CPU has (ab_loop.sh's AB_ISA),
+# process CPU time, the values alternating view by view, ROUNDS times. Writes tests/bench/results/NAME.txt (one line per view,
 # value, round and mode: scene value round mode Mrays/s build_ms nodes SAH triangles) and NAME.md
 # (the loop is tests/bench/ab_loop.sh; summarize_kd_ab.py: per view the median ratio of the second
 # value's throughput to the first's, paired round by round, and the build times).

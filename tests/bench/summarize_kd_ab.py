@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Turns tests/bench/run_kd_ab.sh's lines into tests/bench/results/NAME.md.
 
-Usage: summarize_kd_ab.py NAME.txt OPTION NAME
+Usage: summarize_kd_ab.py NAME.txt OPTION NAME [ISA]
+ISA: the kernels' ISA in the runs, sse4, avx2 or avx512 (the default).
 Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
 median over rounds of the paired throughput ratio (second value over first, same round) for
 each mode in the lines: primary and shadow rays (in packets, and as primary-single and
@@ -23,7 +24,10 @@ OPTIONS = {
 }
 
 
-def main(path, option, name):
+WIDTH = {"sse4": 4, "avx2": 8, "avx512": 16}
+
+
+def main(path, option, name, isa="avx512"):
     what = OPTIONS.get(option, option)
     runs = collections.defaultdict(dict)  # (scene, mode, round) -> {value: (mrays, build, nodes, sah, tris)}
     values = []  # in the order the run gave them
@@ -49,7 +53,7 @@ def main(path, option, name):
                 if option == "--kd-intersection-cost" else "")
     command = (f"tests/bench/run_bin_ab.sh A B {name}" if option == "binaries" else
                f"tests/bench/run_kd_ab.sh {option} \"{a} {b}\" {name}")
-    print(f"`{command}` — rtc-bench on every shared view, one thread, 16-wide packets (avx512), "
+    print(f"`{command}` — rtc-bench on every shared view, one thread, {WIDTH.get(isa, '?')}-wide packets ({isa}), "
           f"process CPU time, `--reps 5 --build-reps 3`, modes {', '.join(modes)} (a -single mode: the same rays traced one at a time), the two values alternating view by view in each round. "
           f"Ratios are {b} over {a}, paired within a round; the median over the rounds comes first, the "
           "single rounds in brackets. Build: median over the rounds of each run's median of 3 builds (flattening plus "
@@ -86,6 +90,6 @@ def main(path, option, name):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 4:
-        sys.exit("usage: summarize_kd_ab.py NAME.txt OPTION NAME")
+    if len(sys.argv) not in (4, 5):
+        sys.exit("usage: summarize_kd_ab.py NAME.txt OPTION NAME [ISA]")
     main(*sys.argv[1:])
