@@ -902,6 +902,55 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
 // alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
 // order, the same scalar pick of the groups that beat the split so far. The last, partial 8
 // are copied out with padding events (NaN positions, type 3, which is no event type).
+// SahAxis::cost for 8 candidate planes at once, its float operations in its order (so the
+// same bits): each plane's cost with its planar references on the left and on the right, and
+// the cheaper (ties to the left); `planar_left` gets the lanes that put them on the left.
+// `left`, `right` and `planar` are the planes' reference counts. Shared by the event sweep
+// (best_on_axis_avx2) and the bit-mask stage's plane scan (scan_planes_avx2).
+struct SahCosts8 {
+  __m256 lo, hi, scale, perimeter, cross, two, k_t, k_i, bonus, zero;
+
+  [[gnu::target("avx2")]] explicit SahCosts8(const SahAxis& sah)
+      : lo(_mm256_set1_ps(sah.lo_)),
+        hi(_mm256_set1_ps(sah.hi_)),
+        scale(_mm256_set1_ps(sah.scale_)),
+        perimeter(_mm256_set1_ps(sah.perimeter_)),
+        cross(_mm256_set1_ps(sah.cross_)),
+        two(_mm256_set1_ps(2.0f)),
+        k_t(_mm256_set1_ps(sah.k_t_)),
+        k_i(_mm256_set1_ps(sah.k_i_)),
+        bonus(_mm256_set1_ps(sah.bonus_)),
+        zero(_mm256_setzero_ps()) {}
+
+  [[gnu::target("avx2")]] __m256 cost(__m256 pos, __m256i left, __m256i right, __m256i planar,
+                                      __m256& planar_left) const {
+    const __m256 has_planar = _mm256_castsi256_ps(
+        _mm256_xor_si256(_mm256_cmpeq_epi32(planar, _mm256_setzero_si256()), _mm256_set1_epi32(-1)));
+    const __m256 area_left =
+        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, lo), scale), perimeter)));
+    const __m256 area_right =
+        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(hi, pos), scale), perimeter)));
+    // (a, b) = (left + planar, right), then (left, right + planar).
+    const __m256 cost_left = with_bonus(area_left, area_right, _mm256_cvtepi32_ps(_mm256_add_epi32(left, planar)),
+                                        _mm256_cvtepi32_ps(right));
+    const __m256 cost_right = _mm256_blendv_ps(
+        cost_left,
+        with_bonus(area_left, area_right, _mm256_cvtepi32_ps(left), _mm256_cvtepi32_ps(_mm256_add_epi32(right, planar))),
+        has_planar);
+    planar_left = _mm256_cmp_ps(cost_left, cost_right, _CMP_LE_OQ);
+    return _mm256_blendv_ps(cost_right, cost_left, planar_left);
+  }
+
+ private:
+  // k_t + k_i (area_left a + area_right b), times the empty-space bonus where a or b is 0.
+  [[gnu::target("avx2")]] __m256 with_bonus(__m256 area_left, __m256 area_right, __m256 a, __m256 b) const {
+    const __m256 c =
+        _mm256_add_ps(k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
+    const __m256 empty_side = _mm256_or_ps(_mm256_cmp_ps(a, zero, _CMP_EQ_OQ), _mm256_cmp_ps(b, zero, _CMP_EQ_OQ));
+    return _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side);
+  }
+};
+
 #define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
 #define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
@@ -910,15 +959,11 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   const __m256i deinterleave = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
   const __m256i next_lane = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
   const __m256i previous_lane = _mm256_setr_epi32(0, 0, 1, 2, 3, 4, 5, 6);
-  const __m256i zero_i = _mm256_setzero_si256(), one = _mm256_set1_epi32(1), three = _mm256_set1_epi32(3);
+  const __m256i one = _mm256_set1_epi32(1), three = _mm256_set1_epi32(3);
   const __m256i end_type = _mm256_set1_epi32(kEnd), planar_type = _mm256_set1_epi32(kPlanar);
   const __m256i start_type = _mm256_set1_epi32(kStart), low10 = _mm256_set1_epi32(0x3FF);
   const __m256i planar_one = _mm256_set1_epi32(1 << 10), end_one = _mm256_set1_epi32(1 << 20);
-  const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
-  const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
-  const __m256 cross = _mm256_set1_ps(sah.cross_), two = _mm256_set1_ps(2.0f);
-  const __m256 k_t = _mm256_set1_ps(sah.k_t_), k_i = _mm256_set1_ps(sah.k_i_), bonus = _mm256_set1_ps(sah.bonus_);
-  const __m256 zero = _mm256_setzero_ps();
+  const SahCosts8 sah8(sah);
   const float nan_value = std::numeric_limits<float>::quiet_NaN();
   int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
   int group_left = 0, group_planar = 0;
@@ -975,31 +1020,11 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
     gp = _mm256_max_epi32(gp, _mm256_set1_epi32(group_planar));
     const __m256i planar = _mm256_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
     const __m256i right = _mm256_sub_epi32(_mm256_set1_epi32(right_base), ep_incl);  // n_right after it
-    const __m256 in_box = _mm256_and_ps(_mm256_cmp_ps(pos, box_lo, _CMP_GT_OQ), _mm256_cmp_ps(pos, box_hi, _CMP_LT_OQ));
+    const __m256 in_box = _mm256_and_ps(_mm256_cmp_ps(pos, sah8.lo, _CMP_GT_OQ), _mm256_cmp_ps(pos, sah8.hi, _CMP_LT_OQ));
     const unsigned inside = group_end & static_cast<unsigned>(_mm256_movemask_ps(in_box));
     if (inside != 0) {
-      const __m256 has_planar =
-          _mm256_castsi256_ps(_mm256_xor_si256(_mm256_cmpeq_epi32(planar, zero_i), _mm256_set1_epi32(-1)));
-      const __m256 area_left = _mm256_mul_ps(
-          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
-      const __m256 area_right = _mm256_mul_ps(
-          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(box_hi, pos), scale), perimeter)));
-      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
-      __m256 na = _mm256_cvtepi32_ps(_mm256_add_epi32(left, planar));
-      __m256 nb = _mm256_cvtepi32_ps(right);
-      __m256 c = _mm256_add_ps(
-          k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, na), _mm256_mul_ps(area_right, nb))));
-      __m256 empty_side = _mm256_or_ps(_mm256_cmp_ps(na, zero, _CMP_EQ_OQ), _mm256_cmp_ps(nb, zero, _CMP_EQ_OQ));
-      const __m256 cost_left = _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side);
-      na = _mm256_cvtepi32_ps(left);
-      nb = _mm256_cvtepi32_ps(_mm256_add_epi32(right, planar));
-      c = _mm256_add_ps(k_t,
-                        _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, na), _mm256_mul_ps(area_right, nb))));
-      empty_side = _mm256_or_ps(_mm256_cmp_ps(na, zero, _CMP_EQ_OQ), _mm256_cmp_ps(nb, zero, _CMP_EQ_OQ));
-      const __m256 cost_right =
-          _mm256_blendv_ps(cost_left, _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side), has_planar);
-      const __m256 planar_left_v = _mm256_cmp_ps(cost_left, cost_right, _CMP_LE_OQ);
-      const __m256 cost = _mm256_blendv_ps(cost_right, cost_left, planar_left_v);
+      __m256 planar_left_v;
+      const __m256 cost = sah8.cost(pos, left, right, planar, planar_left_v);
       const unsigned better =
           inside & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(cost, _mm256_set1_ps(best.cost), _CMP_LT_OQ)));
       if (better != 0) {
@@ -1106,6 +1131,21 @@ template <int W>
   return n;
 }
 
+// The plane scans' last step: of the 8 planes from index i whose lanes are set in `better`
+// (cheaper than split.cost when it was broadcast), each one still cheaper in lane order becomes
+// the split (so the first of equal costs wins, as in the scalar scan).
+[[gnu::always_inline]] inline void take_cheaper(unsigned better, const float* costs, const float* at,
+                                                unsigned planar_left, int axis, std::size_t i, SplitChoice& split,
+                                                std::size_t& chosen) {
+  for (; better != 0; better &= better - 1) {
+    const int j = std::countr_zero(better);
+    if (costs[j] < split.cost) {
+      split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
+      chosen = i + static_cast<std::size_t>(j);
+    }
+  }
+}
+
 // With two words (W = 2) each count is the sum of the two words' popcounts.
 template <int W>
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt")]] void scan_planes_avx512(
@@ -1155,13 +1195,7 @@ template <int W>
         alignas(32) float costs[8], at[8];
         _mm256_store_ps(costs, best);
         _mm256_store_ps(at, pos);
-        for (; better != 0; better &= better - 1) {
-          const int j = std::countr_zero(better);
-          if (costs[j] < split.cost) {
-            split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
-            chosen = i + static_cast<std::size_t>(j);
-          }
-        }
+        take_cheaper(better, costs, at, planar_left, axis, i, split, chosen);
       }
     }
     if (in_range != 0xFF) return;
@@ -1204,11 +1238,7 @@ template <int W>
   __m256i m[W];
   for (int w = 0; w < W; ++w) m[w] = _mm256_set1_epi64x(static_cast<long long>(mask.w[w]));
   const __m256 v_hi = _mm256_set1_ps(hi);
-  const __m256 box_lo = _mm256_set1_ps(sah.lo_), box_hi = _mm256_set1_ps(sah.hi_);
-  const __m256 scale = _mm256_set1_ps(sah.scale_), perimeter = _mm256_set1_ps(sah.perimeter_);
-  const __m256 cross = _mm256_set1_ps(sah.cross_), two = _mm256_set1_ps(2.0f);
-  const __m256 k_t = _mm256_set1_ps(sah.k_t_), k_i = _mm256_set1_ps(sah.k_i_), bonus = _mm256_set1_ps(sah.bonus_);
-  const __m256 zero = _mm256_setzero_ps();
+  const SahCosts8 sah8(sah);
   const __m256i zero_i = _mm256_setzero_si256();
   for (std::size_t i = from;; i += 8) {  // the padding at +inf ends it
     const __m256 pos = _mm256_loadu_ps(planes.pos.data() + i);
@@ -1228,28 +1258,8 @@ template <int W>
       const __m256i n_left = mask_counts8_avx2<W>(planes.below, i, m);
       const __m256i n_right = mask_counts8_avx2<W>(planes.above, i, m);
       const __m256i n_planar = mask_counts8_avx2<W>(planes.planar, i, m);
-      const __m256 has_planar =
-          _mm256_castsi256_ps(_mm256_xor_si256(_mm256_cmpeq_epi32(n_planar, zero_i), _mm256_set1_epi32(-1)));
-      const __m256 area_left = _mm256_mul_ps(
-          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, box_lo), scale), perimeter)));
-      const __m256 area_right = _mm256_mul_ps(
-          two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(box_hi, pos), scale), perimeter)));
-      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
-      __m256 a = _mm256_cvtepi32_ps(_mm256_add_epi32(n_left, n_planar));
-      __m256 b = _mm256_cvtepi32_ps(n_right);
-      __m256 c = _mm256_add_ps(
-          k_t, _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
-      __m256 empty_side = _mm256_or_ps(_mm256_cmp_ps(a, zero, _CMP_EQ_OQ), _mm256_cmp_ps(b, zero, _CMP_EQ_OQ));
-      const __m256 cost_left = _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side);
-      a = _mm256_cvtepi32_ps(n_left);
-      b = _mm256_cvtepi32_ps(_mm256_add_epi32(n_right, n_planar));
-      c = _mm256_add_ps(k_t,
-                        _mm256_mul_ps(k_i, _mm256_add_ps(_mm256_mul_ps(area_left, a), _mm256_mul_ps(area_right, b))));
-      empty_side = _mm256_or_ps(_mm256_cmp_ps(a, zero, _CMP_EQ_OQ), _mm256_cmp_ps(b, zero, _CMP_EQ_OQ));
-      const __m256 cost_right =
-          _mm256_blendv_ps(cost_left, _mm256_blendv_ps(c, _mm256_mul_ps(c, bonus), empty_side), has_planar);
-      const __m256 planar_left_v = _mm256_cmp_ps(cost_left, cost_right, _CMP_LE_OQ);
-      const __m256 best = _mm256_blendv_ps(cost_right, cost_left, planar_left_v);
+      __m256 planar_left_v;
+      const __m256 best = sah8.cost(pos, n_left, n_right, n_planar, planar_left_v);
       unsigned better =
           valid & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(best, _mm256_set1_ps(split.cost), _CMP_LT_OQ)));
       if (better != 0) {
@@ -1257,13 +1267,7 @@ template <int W>
         alignas(32) float costs[8], at[8];
         _mm256_store_ps(costs, best);
         _mm256_store_ps(at, pos);
-        for (; better != 0; better &= better - 1) {
-          const int j = std::countr_zero(better);
-          if (costs[j] < split.cost) {
-            split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
-            chosen = i + static_cast<std::size_t>(j);
-          }
-        }
+        take_cheaper(better, costs, at, planar_left, axis, i, split, chosen);
       }
     }
     if (in_range != 0xFF) return;
