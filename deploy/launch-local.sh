@@ -75,7 +75,8 @@ cleanup() {
 trap cleanup EXIT
 # Ctrl-C reaches the master directly (same process group): it finishes the frames in flight with
 # the workers, which run in their own sessions so the terminal's SIGINT does not stop them first.
-trap 'echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT TERM
+interrupted=0
+trap 'interrupted=1; echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT TERM
 
 "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" \
   --min-workers "$workers" "${extra[@]}" &
@@ -94,10 +95,18 @@ for i in $(seq 1 "$workers"); do
   worker_pids+=($!)
 done
 
+# The master's own exit status. A trapped signal cuts `wait` short (status 128 + signal) whether
+# or not the master is still running, so wait again after one: the master's status stays there
+# to be collected (it may well have exited by then: it finishes its frames in milliseconds), and
+# 127 means the wait before the signal already collected it.
 status=0
-while kill -0 "$master_pid" 2>/dev/null; do
-  status=0
-  wait "$master_pid" || status=$?  # a trapped signal interrupts wait: wait again
+while :; do
+  interrupted=0
+  rc=0
+  wait "$master_pid" || rc=$?
+  [ "$rc" -eq 127 ] && break
+  status=$rc
+  [ "$interrupted" -eq 1 ] || break
 done
 [ "$status" -eq 0 ] || echo "launch-local: rtc-master exited with status $status" >&2
 exit "$status"
