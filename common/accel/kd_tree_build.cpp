@@ -897,11 +897,6 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   return best;
 }
 
-// best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
-// sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
-// alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
-// order, the same scalar pick of the groups that beat the split so far. The last, partial 8
-// are copied out with padding events (NaN positions, type 3, which is no event type).
 // SahAxis::cost for 8 candidate planes at once, its float operations in its order (so the
 // same bits): each plane's cost with its planar references on the left and on the right, and
 // the cheaper (ties to the left); `planar_left` gets the lanes that put them on the left.
@@ -951,6 +946,11 @@ struct SahCosts8 {
   }
 };
 
+// best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
+// sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
+// alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
+// order, the same scalar pick of the groups that beat the split so far. The last, partial 8
+// are copied out with padding events (NaN positions, type 3, which is no event type).
 #define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
 #define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,

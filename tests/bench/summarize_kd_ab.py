@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Turns tests/bench/run_kd_ab.sh's lines into tests/bench/results/NAME.md.
 
-Usage: summarize_kd_ab.py NAME.txt OPTION NAME [ISA]
-ISA: the kernels' ISA in the runs, sse4, avx2 or avx512 (the default).
+Usage: summarize_kd_ab.py NAME.txt OPTION NAME
+Each line may end with the kernels' ISA in its run (sse4.2, avx2, avx512); lines written before
+that field was added are avx512 runs.
 Per view: triangles; nodes, SAH and the median build time at each of the option's two values; the
 median over rounds of the paired throughput ratio (second value over first, same round) for
 each mode in the lines: primary and shadow rays (in packets, and as primary-single and
@@ -24,17 +25,19 @@ OPTIONS = {
 }
 
 
-WIDTH = {"sse4": 4, "avx2": 8, "avx512": 16}
+WIDTH = {"sse4.2": 4, "avx2": 8, "avx512": 16}  # rtc::isa_name's names
 
 
-def main(path, option, name, isa="avx512"):
+def main(path, option, name):
     what = OPTIONS.get(option, option)
     runs = collections.defaultdict(dict)  # (scene, mode, round) -> {value: (mrays, build, nodes, sah, tris)}
     values = []  # in the order the run gave them
+    isas = set()
     for line in open(path):
         p = line.split()
-        if len(p) != 9:
+        if len(p) not in (9, 10):
             continue
+        isas.add(p[9] if len(p) == 10 else "avx512")
         scene, value, rnd, mode = p[0], p[1], p[2], p[3]
         if value not in values:
             values.append(value)
@@ -42,6 +45,9 @@ def main(path, option, name, isa="avx512"):
     if len(values) != 2:
         sys.exit(f"summarize_kd_ab: expected two values of {option} in {path}, found {values}")
     a, b = values
+    if len(isas) != 1:
+        sys.exit(f"summarize_kd_ab: the runs in {path} used different ISAs: {sorted(isas)}")
+    isa = isas.pop()
     modes = [m for m in ("primary", "shadow", "primary-single", "shadow-single", "full") if any(k[1] == m for k in runs)]
     label = {"primary": "primary", "shadow": "shadow", "primary-single": "single-ray primary",
              "shadow-single": "single-ray shadow", "full": "full frame"}
@@ -90,6 +96,6 @@ def main(path, option, name, isa="avx512"):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) not in (4, 5):
-        sys.exit("usage: summarize_kd_ab.py NAME.txt OPTION NAME [ISA]")
+    if len(sys.argv) != 4:
+        sys.exit("usage: summarize_kd_ab.py NAME.txt OPTION NAME")
     main(*sys.argv[1:])
