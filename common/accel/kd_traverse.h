@@ -11,11 +11,13 @@
 // give the same bits.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <type_traits>
 #include <utility>
 
 #include "common/accel/kd_tree.h"
+#include "common/accel/shadow_order.h"
 #include "common/accel/trace.h"
 #include "common/simd/simd.h"
 
@@ -473,10 +475,14 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
 /// lane visits both children with its whole segment (min/max keep the segment on NaN).
-/// Test is WaldTest or WatertightTest, matching the tree's records.
-template <int N, bool kOcclusion, template <int> class Test>
+/// Test is WaldTest or WatertightTest, matching the tree's records. kFarFirst (occlusion only):
+/// where both children are entered, the one farther along the rays first; the children and
+/// their segments are the same, so the same leaves are visited until every lane has a hit, and
+/// the answer is the same (ShadowOrder).
+template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
-                       HitPacket<N>& hit, vbool<N>& occluded) {
+                                HitPacket<N>& hit, vbool<N>& occluded) {
+  static_assert(kOcclusion || !kFarFirst, "closest hits are found near to far");
   const KdNode* nodes = tree.nodes().data();
   const TriRecord* records = tree.leaf_records().data();
   const Aabb& box = tree.bounds();
@@ -557,6 +563,27 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const vbool<N> go_near = active & (near <= reach(near_end));
       const vbool<N> go_far = active & (far_start <= reach(far));
       // One decision per node for the whole packet.
+      if constexpr (kFarFirst) {
+        if (none(go_near)) {
+          index = far_child;
+          near = far_start;
+          active = go_far;
+        } else if (none(go_far)) {
+          index = near_child;
+          far = near_end;
+          active = go_near;
+        } else {
+          Entry& e = stack[depth++];
+          near.store(e.near);
+          near_end.store(e.far);
+          e.mask = bits(go_near);
+          e.node = near_child;
+          index = far_child;
+          near = far_start;
+          active = go_far;
+        }
+        continue;
+      }
       if (none(go_far)) {
         index = near_child;
         far = near_end;
@@ -658,10 +685,10 @@ struct RayLanes {
 };
 
 /// One lane of a packet traced alone (N = 1), its result written back into the packet.
-template <int N, bool kOcclusion, template <int> class Test>
+template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
 inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
   on_lane<N, kOcclusion>(ray, i, hit, occluded, [&](const RayPacket<1>& r, HitPacket<1>& h, vbool<1>& occ) {
-    traverse_coherent<1, kOcclusion, Test>(tree, r, vbool<1>(true), h, occ);
+    traverse_coherent<1, kOcclusion, Test, kFarFirst>(tree, r, vbool<1>(true), h, occ);
   });
 }
 
@@ -670,12 +697,12 @@ inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPa
 /// octants (reflections off curved surfaces, shadow rays from scattered hits) is regrouped:
 /// each octant's lanes traverse as one masked packet, and an octant with a single lane goes
 /// alone through the N = 1 kernel. Lanes never interact, so the bits are the same either way.
-template <int N, bool kOcclusion, template <int> class Test>
+template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
 void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
                   vbool<N>& occluded) {
   if (tree.empty() || none(active)) return;
   if constexpr (N == 1) {
-    traverse_coherent<N, kOcclusion, Test>(tree, ray, active, hit, occluded);
+    traverse_coherent<N, kOcclusion, Test, kFarFirst>(tree, ray, active, hit, occluded);
   } else {
     const unsigned sx = bits(sign_bit(ray.dir[0]));
     const unsigned sy = bits(sign_bit(ray.dir[1]));
@@ -690,9 +717,9 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
       const unsigned group = left & mx & my & mz;
       left &= ~group;
       if ((group & (group - 1)) == 0) {
-        trace_lane<N, kOcclusion, Test>(tree, ray, first, hit, occluded);
+        trace_lane<N, kOcclusion, Test, kFarFirst>(tree, ray, first, hit, occluded);
       } else {
-        traverse_coherent<N, kOcclusion, Test>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
+        traverse_coherent<N, kOcclusion, Test, kFarFirst>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
       }
     }
   }
@@ -713,16 +740,36 @@ inline void intersect(const KdTree& tree, const RayPacket<N>& ray, vbool<N> acti
   }
 }
 
-/// Occlusion (shadow) queries: stops at the first hit of each lane.
+/// Occlusion (shadow) queries: stops at the first hit of each lane. `far_first`: each ray's
+/// leaves are visited from the far end of its segment (the same answer, ShadowOrder).
 template <int N>
-inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active) {
+inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, bool far_first = false) {
   vbool<N> occ(false);
   HitPacket<N> unused;  // not read by occlusion queries
   if (tree.watertight()) {
-    trace_packet<N, true, WatertightTest>(tree, ray, active, unused, occ);
+    if (far_first) {
+      trace_packet<N, true, WatertightTest, true>(tree, ray, active, unused, occ);
+    } else {
+      trace_packet<N, true, WatertightTest, false>(tree, ray, active, unused, occ);
+    }
   } else {
-    trace_packet<N, true, WaldTest>(tree, ray, active, unused, occ);
+    if (far_first) {
+      trace_packet<N, true, WaldTest, true>(tree, ray, active, unused, occ);
+    } else {
+      trace_packet<N, true, WaldTest, false>(tree, ray, active, unused, occ);
+    }
   }
+  return occ;
+}
+
+/// occluded() in the order `chooser` picks, telling it the time taken when it asks.
+template <int N>
+inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, ShadowOrderChooser& chooser) {
+  const ShadowOrderChooser::Pick pick = chooser.pick();
+  if (!pick.timed) return occluded<N>(tree, ray, active, pick.far_first);
+  const std::uint64_t start = ShadowOrderChooser::now();
+  const vbool<N> occ = occluded<N>(tree, ray, active, pick.far_first);
+  chooser.record(ShadowOrderChooser::now() - start, static_cast<unsigned>(std::popcount(bits(active))));
   return occ;
 }
 

@@ -11,6 +11,7 @@
 #include <glm/glm.hpp>
 
 #include "common/accel/kd_tree.h"
+#include "common/accel/shadow_order.h"
 #include "common/base/isa.h"
 
 namespace rtc {
@@ -35,7 +36,10 @@ struct RayHit {
 
 /// Stream entry points of one ISA. With packets, every `packet_width` consecutive rays form a
 /// packet (give them as 2x2 pixel blocks for coherence); without, each ray is traced alone by
-/// the N = 1 kernel. Both give the same bits. Thread-safe.
+/// the N = 1 kernel. Both give the same bits. Thread-safe. `occluded` walks each packet in the
+/// order a ShadowOrderChooser over the stream picks (ShadowOrder::Auto); `occluded_in_order`
+/// takes the order (the answers are the same in every order) and, for Auto, a tally shared by
+/// the calls (optional, thread-safe) that the choice learns from and adds to.
 struct TraceKernels {
   Isa isa = Isa::Sse42;
   int packet_width = 4;
@@ -43,6 +47,8 @@ struct TraceKernels {
                     bool use_packets) = nullptr;
   void (*occluded)(const KdTree& tree, const RayQuery* rays, std::uint8_t* occluded, std::size_t count,
                    bool use_packets) = nullptr;
+  void (*occluded_in_order)(const KdTree& tree, const RayQuery* rays, std::uint8_t* occluded, std::size_t count,
+                            bool use_packets, ShadowOrder order, ShadowOrderTally* tally) = nullptr;
 };
 
 /// Recomputes the distance of each hit in double precision from its triangle's vertices

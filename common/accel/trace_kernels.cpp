@@ -141,15 +141,18 @@ void intersect_stream(const KdTree& tree, const RayQuery* rays, RayHit* hits, st
 }
 
 template <int N>
-void occluded_stream(const KdTree& tree, const RayQuery* rays, std::uint8_t* out, std::size_t count) {
+void occluded_stream(const KdTree& tree, const RayQuery* rays, std::uint8_t* out, std::size_t count,
+                     ShadowOrder order, ShadowOrderTally* tally) {
+  ShadowOrderChooser chooser(order, tally);
   for (std::size_t first = 0; first < count; first += N) {
     const std::size_t n = std::min<std::size_t>(N, count - first);
     RayPacket<N> p;
     vbool<N> active;
     load<N>(rays + first, n, p, active);
-    const unsigned occ = bits(occluded<N>(tree, p, active));
+    const unsigned occ = bits(occluded<N>(tree, p, active, chooser));
     for (std::size_t i = 0; i < n; ++i) out[first + i] = ((occ >> i) & 1u) != 0 ? 1 : 0;
   }
+  chooser.flush();
 }
 
 void intersect_entry(const KdTree& tree, const RayQuery* rays, RayHit* hits, std::size_t count,
@@ -161,19 +164,25 @@ void intersect_entry(const KdTree& tree, const RayQuery* rays, RayHit* hits, std
   }
 }
 
+void occluded_in_order_entry(const KdTree& tree, const RayQuery* rays, std::uint8_t* out, std::size_t count,
+                             bool use_packets, ShadowOrder order, ShadowOrderTally* tally) {
+  if (use_packets) {
+    occluded_stream<kWidth>(tree, rays, out, count, order, tally);
+  } else {
+    occluded_stream<1>(tree, rays, out, count, order, tally);
+  }
+}
+
 void occluded_entry(const KdTree& tree, const RayQuery* rays, std::uint8_t* out, std::size_t count,
                     bool use_packets) {
-  if (use_packets) {
-    occluded_stream<kWidth>(tree, rays, out, count);
-  } else {
-    occluded_stream<1>(tree, rays, out, count);
-  }
+  occluded_in_order_entry(tree, rays, out, count, use_packets, ShadowOrder::Auto, nullptr);
 }
 
 }  // namespace
 
 const TraceKernels& trace_kernels_for_isa() {
-  static const TraceKernels kernels{Isa::RTC_ISA_ENUM, kWidth, &intersect_entry, &occluded_entry};
+  static const TraceKernels kernels{Isa::RTC_ISA_ENUM, kWidth, &intersect_entry, &occluded_entry,
+                                    &occluded_in_order_entry};
   return kernels;
 }
 

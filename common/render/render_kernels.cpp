@@ -16,6 +16,7 @@
 #include <cmath>
 #include <limits>
 #include <utility>
+#include <vector>
 
 #include "common/accel/kd_traverse.h"
 #include "common/accel/trace.h"
@@ -96,9 +97,10 @@ void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_
 }
 
 /// Occlusion of the lanes in `lanes_mask`, as a lane bit mask. `by_static` (optional) gets the
-/// lanes blocked by meshes that never move (FrameGeometry::first_tree_static).
+/// lanes blocked by meshes that never move (FrameGeometry::first_tree_static). `order` picks
+/// the end each ray's walk starts from (the same answer either way) and learns the time taken.
 template <int N>
-unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask,
+unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, ShadowOrderChooser& order,
                         unsigned* by_static = nullptr) {
   if (by_static != nullptr) *by_static = 0;
   if (fs.tracer != nullptr) {
@@ -120,12 +122,18 @@ unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned 
   const RayPacket<N> p = rays.packet();
   unsigned blocked = 0;
   const FrameGeometry& g = *fs.geometry;
+  const ShadowOrderChooser::Pick pick = order.pick();
+  const std::uint64_t start = pick.timed ? ShadowOrderChooser::now() : 0;
   for (std::size_t k = 0; k < g.trees.size(); ++k) {
     const unsigned open = lanes_mask & ~blocked;
     if (open == 0) break;
     const TreeSpace* space = g.space(k);
-    blocked |= bits(occluded<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), vbool<N>::from_bits(open)));
+    blocked |= bits(occluded<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), vbool<N>::from_bits(open),
+                                pick.far_first));
     if (by_static != nullptr && g.first_tree_static && k == 0) *by_static = blocked;
+  }
+  if (pick.timed) {
+    order.record(ShadowOrderChooser::now() - start, static_cast<unsigned>(std::popcount(lanes_mask)));
   }
   return blocked;
 }
@@ -242,9 +250,28 @@ void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) 
 // general one (F = kAll) does for a frame with those features: what F leaves out is only work
 // whose result the frame never uses (a light loop over no lights, a mirror test no material
 // passes, a surface nothing reads), so the pixels are the same bits.
+/// Shadow-ray walk orders of a tile: one chooser per light for the primary hits' shadow rays and
+/// one for the mirror bounces' (points of another kind, often another preference), each
+/// learning from and adding to the renderer's shared tally for it (TileKernelOptions).
+struct ShadowOrders {
+  std::vector<ShadowOrderChooser> per_light;  // [2 * light + (depth > 0)]
+  ShadowOrders(std::size_t lights, const TileKernelOptions& options) {
+    per_light.reserve(2 * lights);
+    for (std::size_t k = 0; k < 2 * lights; ++k) {
+      per_light.emplace_back(options.shadow_order, k < options.shadow_tally_count ? &options.shadow_tally[k] : nullptr);
+    }
+  }
+  ShadowOrders(const ShadowOrders&) = delete;
+  ShadowOrders& operator=(const ShadowOrders&) = delete;
+  ~ShadowOrders() {
+    for (ShadowOrderChooser& c : per_light) c.flush();
+  }
+  ShadowOrderChooser& at(std::size_t light, int depth) { return per_light[2 * light + (depth > 0 ? 1 : 0)]; }
+};
+
 template <int N, unsigned F>
 void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
-                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks) {
+                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders) {
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
   RayHit hit[N];
   closest_hits<N>(fs, rays, active, hit);
@@ -305,7 +332,8 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
     if constexpr ((F & kShadows) != 0) {
       if (marks != nullptr && !fs.lights.empty()) marks->shaded();
       // One packet of shadow rays per light (Wald et al. 2001, section 3).
-      for (const PointLight& light : fs.lights) {
+      for (std::size_t light_index = 0; light_index < fs.lights.size(); ++light_index) {
+        const PointLight& light = fs.lights[light_index];
         RayLanes<N> shadow;
         glm::vec3 to_light[N]{};  // read only where `want`; zeroed for GCC's -Wmaybe-uninitialized
         unsigned want = 0;
@@ -319,7 +347,8 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         if (want == 0) continue;
         counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
         unsigned by_static = 0;
-        const unsigned blocked = occluded_lanes<N>(fs, shadow, want, marks != nullptr ? &by_static : nullptr);
+        const unsigned blocked = occluded_lanes<N>(fs, shadow, want, orders.at(light_index, depth),
+                                                   marks != nullptr ? &by_static : nullptr);
         if (marks != nullptr) {
           // Temporal coherence: a shadow ray blocked by a mesh that never moves stays blocked
           // whatever moves, so it needs no marks (in an interior most of them; on the office
@@ -397,7 +426,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         refl.set(i, s.point, 0.0f, r, std::numeric_limits<float>::infinity());
       }
       if (bounce == 0) return;
-      trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks);
+      trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders);
       for (int i = 0; i < N; ++i) {
         if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
       }
@@ -444,7 +473,7 @@ void fill_missed_tile(const FrameState& fs, int w, int h, int spp, Image& out, T
 // traced (but still marked for temporal coherence: a mesh may move into that space later).
 template <int N, unsigned F>
 void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts,
-                      MarkRecorder* marks, const FrustumCull* cull) {
+                      MarkRecorder* marks, const FrustumCull* cull, const TileKernelOptions& options) {
   constexpr int kBlockW = packet_block_width(N);
   constexpr int kBlockH = N / kBlockW;
   const int spp = std::max(1, fs.settings.spp);
@@ -454,6 +483,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
     fill_missed_tile(fs, w, h, spp, out, counts);
     return;
   }
+  ShadowOrders orders(fs.lights.size(), options);
   for (int by = 0; by < h; by += kBlockH) {
     for (int bx = 0; bx < w; bx += kBlockW) {
       int px[N], py[N];
@@ -487,7 +517,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
         if (!skip) {
           Aov* first = nullptr;
           if constexpr ((F & kAovs) != 0) first = s == 0 ? aov : nullptr;
-          trace_radiance<N, F>(fs, primary, valid, 0, lanes, first, counts, marks);
+          trace_radiance<N, F>(fs, primary, valid, 0, lanes, first, counts, marks, orders);
         } else {
           // What trace_radiance does for lanes that miss, without the kd-tree.
           if (marks != nullptr) mark_paths<N>(*marks, primary, valid, nullptr);
@@ -522,7 +552,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
 }
 
 using TileFn = void (*)(const FrameState&, int, int, int, int, Image&, TileRayCounts&, MarkRecorder*,
-                        const FrustumCull*);
+                        const FrustumCull*, const TileKernelOptions&);
 
 // The instantiations compiled; a frame gets the one with the fewest features that covers its own.
 // Each costs compile time (this file is compiled once per ISA; all twelve distinct masks took
@@ -567,7 +597,7 @@ void render_tile_entry(const FrameState& fs, int x0, int y0, int w, int h, const
   if (marks != nullptr && marks->grid_empty() && fs.lights.empty()) marks = nullptr;  // nothing to record
   const std::size_t k = compiled_for(need_of(fs, options, !out.depth.empty()));
   const FrustumCull* cull = options.skip_empty && fs.cull.active() ? &fs.cull : nullptr;
-  (options.packets ? kPacket[k] : kSingle[k])(fs, x0, y0, w, h, out, counts, marks, cull);
+  (options.packets ? kPacket[k] : kSingle[k])(fs, x0, y0, w, h, out, counts, marks, cull, options);
 }
 
 const char* kernel_name_entry(const FrameState& fs, const TileKernelOptions& options, bool aovs) {

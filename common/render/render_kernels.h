@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "common/accel/shadow_order.h"
 #include "common/base/isa.h"
 
 namespace rtc {
@@ -45,6 +46,13 @@ struct TileKernelOptions {
   bool packets = true;     ///< false: the single-ray (N = 1) kernels
   bool specialise = true;  ///< the kernel specialised to FrameState::features; false: the general one
   bool skip_empty = true;  ///< skip primary rays that FrameState::cull says miss everything
+  /// Where shadow rays' kd-tree walks start (ShadowOrder; the same pixels in every order):
+  /// Auto chooses per packet from the time packets took in each order (ShadowOrderChooser).
+  ShadowOrder shadow_order = ShadowOrder::Auto;
+  /// Optional, with Auto: tallies shared by tiles and threads, [2 * light + (1 for the shadow
+  /// rays of mirror bounces)]; lights past `shadow_tally_count / 2` learn within the tile only.
+  ShadowOrderTally* shadow_tally = nullptr;
+  std::size_t shadow_tally_count = 0;
 };
 
 /// Entry points of one ISA. `render_tile` writes pixels [x0, x0+w) x [y0, y0+h) of the

@@ -290,6 +290,8 @@ Renderer::Renderer(Scene scene, RenderOptions options)
   check_render_settings(options_.settings.value_or(scene_.settings));
   (void)CameraRays(scene_.camera, scene_.width, scene_.height);
   moving_ = moving_meshes(scene_);
+  shadow_tally_count_ = 2 * scene_.lights.size();
+  shadow_tally_ = std::make_unique<ShadowOrderTally[]>(shadow_tally_count_);
 }
 
 std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
@@ -427,7 +429,8 @@ void Renderer::render_tile(const FrameState& state, int x0, int y0, int w, int h
     out = Image(w, h, options_.aovs, options_.aovs);
   }
   TileRayCounts local;
-  const TileKernelOptions k{options_.packets, options_.specialise, options_.skip_empty};
+  const TileKernelOptions k{options_.packets,      options_.specialise, options_.skip_empty,
+                            options_.shadow_order, shadow_tally_.get(), shadow_tally_count_};
   render_kernels(isa_).render_tile(state, x0, y0, w, h, k, out, local, marks);
   if (counts != nullptr) *counts += local;
 }

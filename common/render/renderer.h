@@ -47,6 +47,9 @@ struct RenderOptions {
   /// whole tiles and packets of them get the background as a miss would. The same pixels and
   /// temporal marks either way.
   bool skip_empty = true;
+  /// Where shadow rays' kd-tree walks start (TileKernelOptions::shadow_order); the same pixels
+  /// in every order.
+  ShadowOrder shadow_order = ShadowOrder::Auto;
   /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must
   /// outlive the renderer.
   const ExternalTracer* tracer = nullptr;
@@ -96,6 +99,10 @@ class Renderer {
   /// instance_moving_meshes: per mesh, its object-space tree (null for static meshes), built by
   /// the first prepare()
   std::vector<std::shared_ptr<const KdTree>> object_trees_;
+  /// What shadow packets took in each walk order, per light (TileKernelOptions::shadow_tally),
+  /// over every tile and frame this renderer traces; written by render_tile's threads.
+  std::unique_ptr<ShadowOrderTally[]> shadow_tally_;
+  std::size_t shadow_tally_count_ = 0;
 };
 
 /// KdBuildOptions::clip under `clip` for a tree built once (`rebuilt_per_frame` false: Auto

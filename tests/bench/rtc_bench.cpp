@@ -152,12 +152,13 @@ void for_chunks(const RayStream& s, Fn&& fn) {
 // as rtc's stream API reports them. The throughput figures set against Embree leave that out,
 // since Embree's hits get no such step: both sides then do the same work, tracing.
 void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const RayStream& s, bool shadow,
-                  bool packets, std::vector<RayHit>& hits, std::vector<std::uint8_t>& occ, bool refine = false) {
+                  bool packets, std::vector<RayHit>& hits, std::vector<std::uint8_t>& occ, bool refine = false,
+                  rtc::ShadowOrder order = rtc::ShadowOrder::Auto, rtc::ShadowOrderTally* tally = nullptr) {
   hits.resize(s.rays.size());
   occ.resize(s.rays.size());
   for_chunks(s, [&](std::size_t first, std::size_t n) {
     if (shadow) {
-      k.occluded(fs.geometry->single_tree(), s.rays.data() + first, occ.data() + first, n, packets);
+      k.occluded_in_order(fs.geometry->single_tree(), s.rays.data() + first, occ.data() + first, n, packets, order, tally);
     } else {
       k.intersect(fs.geometry->single_tree(), s.rays.data() + first, hits.data() + first, n, packets);
       if (refine) {
@@ -263,6 +264,12 @@ int run(int argc, char** argv) {
   app.add_flag("--no-specialise", no_specialise,
                "full mode: the general tile kernel instead of the one specialised to the scene's features");
   app.add_flag("--no-skip-empty", no_skip_empty, "full mode: trace primary rays that miss the scene's bounds too");
+  std::string shadow_order_text = "auto";
+  app.add_option("--shadow-order", shadow_order_text,
+                 "where shadow rays' kd-tree walks start: auto (chosen per light from the work it took), near "
+                 "(the ray's origin), far (the light's end); the same answers in every order")
+      ->check(CLI::IsMember({"auto", "near", "far"}))
+      ->capture_default_str();
   app.add_flag("--kernel-ab", kernel_ab,
                "full mode: time the general and the specialised kernel, each with and without empty-space skipping, "
                "interleaved rep by rep, and check that all four give the same pixels");
@@ -274,6 +281,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-aovs", no_aovs, "full mode: render colour only, no depth and normal channels");
   app.add_option("--spp", spp, "samples per pixel (default: the scene's)")->check(CLI::Range(1, 4096));
   CLI11_PARSE(app, argc, argv);
+  const rtc::ShadowOrder shadow_order = rtc::parse_shadow_order(shadow_order_text);
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
@@ -358,6 +366,7 @@ int run(int argc, char** argv) {
                          {"threads", thread_count},
                          {"isa", std::string(rtc::isa_name(isa))},
                          {"intersector", rtc::intersector_name(scene.settings.intersector)},
+                         {"shadow_order", rtc::shadow_order_name(shadow_order)},
                          {"width", fs->width},
                          {"height", fs->height},
                          {"triangles", kd.triangles},
@@ -408,7 +417,13 @@ int run(int argc, char** argv) {
       const RayStream& s = shadow ? shadows : primary;
       std::vector<std::uint8_t> occ;
       std::vector<RayHit> scratch;
-      auto ours = [&](bool packets, bool refine) { trace_stream(kernels, *fs, s, shadow, packets, scratch, occ, refine); };
+      // One tally of the shadow walk orders' times per kernel, kept over the repetitions as a
+      // renderer keeps one over its frames.
+      rtc::ShadowOrderTally tally_packets, tally_single;
+      auto ours = [&](bool packets, bool refine) {
+        trace_stream(kernels, *fs, s, shadow, packets, scratch, occ, refine, shadow_order,
+                     packets ? &tally_packets : &tally_single);
+      };
       const double ms_packet = time_median_ms(reps, [&] { ours(true, false); });
       const double ms_single = time_median_ms(reps, [&] { ours(false, false); });
       const double rays = static_cast<double>(s.real);
@@ -442,7 +457,9 @@ int run(int argc, char** argv) {
         std::vector<std::uint8_t> occ2;
         trace_stream(k, *fs, p2, false, true, h2, occ2, true);
         const RayStream s2 = shadow ? shadow_stream(*fs, p2, h2) : p2;
-        const double ms2 = time_median_ms(reps, [&] { trace_stream(k, *fs, s2, shadow, true, h2, occ2); });
+        rtc::ShadowOrderTally tally2;
+        const double ms2 = time_median_ms(
+            reps, [&] { trace_stream(k, *fs, s2, shadow, true, h2, occ2, false, shadow_order, &tally2); });
         const double m2 = static_cast<double>(s2.real) / ms2 / 1e3;
         per_isa[std::string(rtc::isa_name(other))] = {{"packet_width", k.packet_width}, {"mrays_per_s", m2}};
         if (!json) {
@@ -520,6 +537,7 @@ int run(int argc, char** argv) {
       ro.aovs = !no_aovs;
       ro.specialise = !no_specialise;
       ro.skip_empty = !no_skip_empty;
+      ro.shadow_order = shadow_order;
       auto time_frame = [&](const rtc::RenderOptions& options, rtc::TileRayCounts& counts, rtc::Image& image) {
         rtc::Renderer renderer(scene, options);
         const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(scene.animation.frame_begin);

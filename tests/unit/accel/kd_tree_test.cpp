@@ -684,6 +684,70 @@ TEST(KdTraversal, EveryIsaGivesTheSameBits) {
   EXPECT_GE(tried, 4);  // SSE4.2 at least, twice per test
 }
 
+// Occlusion visits the leaves along each ray from its origin (Near) or from the far end of its
+// segment (Far); Auto picks per run of packets from a shared tally of their times. The answer
+// must be the same in every order, on every ISA, for packets and single rays: shadow rays from
+// the surface points the sphere-and-grid's camera rays hit to four points of light (one inside
+// the sphere, so every ray towards it is blocked), and the random rays of the other tests.
+TEST(KdTraversal, EveryShadowOrderGivesTheSameAnswers) {
+  const Soup s = sphere_and_grid(32);
+  const glm::vec3 lights[] = {{2.0f, 3.0f, 4.0f}, {-3.0f, 0.5f, 1.0f}, {0.1f, -4.0f, -2.0f}, {0.0f, 0.0f, 0.0f}};
+  int tried = 0;
+  for (bool watertight : {false, true}) {
+    const KdTree tree = KdTree::build(s.positions, s.triangles, with_test(watertight));
+    const std::vector<RayQuery> camera = random_rays(41, 8000, true);
+    std::vector<RayHit> hits(camera.size());
+    trace_kernels(Isa::Sse42).intersect(tree, camera.data(), hits.data(), camera.size(), false);
+    std::vector<RayQuery> rays = random_rays(43, 8000, false);
+    std::size_t from_hits = 0;
+    for (const glm::vec3& light : lights) {
+      for (std::size_t i = 0; i < camera.size(); ++i) {
+        if (hits[i].prim == kNoHit) continue;
+        const glm::vec3 p = camera[i].org + hits[i].t * camera[i].dir;
+        rays.push_back(RayQuery{p, 1e-4f, light - p, 1.0f});
+        ++from_hits;
+      }
+    }
+    ASSERT_GT(from_hits, camera.size());  // over a quarter of the camera rays hit
+    std::vector<std::uint8_t> ref(rays.size());
+    trace_kernels(Isa::Sse42).occluded_in_order(tree, rays.data(), ref.data(), rays.size(), false, ShadowOrder::Near,
+                                                nullptr);
+    std::size_t blocked = 0;
+    for (const std::uint8_t o : ref) blocked += o;
+    EXPECT_GT(blocked, rays.size() / 4);
+    EXPECT_LT(blocked, rays.size() * 3 / 4);
+    for (const Isa isa : compiled_isas()) {
+      if (!cpu_supports(isa)) continue;
+      ++tried;
+      for (bool packets : {true, false}) {
+        for (const ShadowOrder order : {ShadowOrder::Near, ShadowOrder::Far, ShadowOrder::Auto}) {
+          SCOPED_TRACE(std::string(isa_name(isa)) + ", packets " + std::to_string(packets) + ", order " +
+                       shadow_order_name(order) + ", " + test_name(watertight));
+          // Auto: calls of 256 rays, as a renderer's runs, sharing one tally, so that runs in
+          // both orders are traced.
+          ShadowOrderTally tally;
+          std::vector<std::uint8_t> got(rays.size(), 2);
+          for (std::size_t first = 0; first < rays.size(); first += 256) {
+            const std::size_t n = std::min<std::size_t>(256, rays.size() - first);
+            trace_kernels(isa).occluded_in_order(tree, rays.data() + first, got.data() + first, n, packets, order,
+                                                 &tally);
+          }
+          for (std::size_t i = 0; i < rays.size(); ++i) {
+            ASSERT_EQ(ref[i], got[i]) << test::describe_ray(rays[i]);
+          }
+          if (order == ShadowOrder::Auto) {
+            EXPECT_GT(tally.rays[0].load(), 0u);
+            EXPECT_GT(tally.rays[1].load(), 0u);
+          } else {
+            EXPECT_EQ(tally.rays[0].load() + tally.rays[1].load(), 0u);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GE(tried, 2);
+}
+
 // The stream kernels load a packet's rays with vector loads and shuffles: streams whose length
 // is not a multiple of the packet width (the last packet repeats its last ray in masked lanes)
 // and that start anywhere in memory must give each ray the bits it gets alone.

@@ -1,0 +1,107 @@
+// ShadowOrderChooser: which walk order each run of shadow packets takes, from a shared tally.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+
+#include "common/accel/shadow_order.h"
+#include "common/base/error.h"
+
+namespace rtc {
+namespace {
+
+// A run of `packets` packets of 8 rays, each timed packet taking `ticks_per_ray` per ray;
+// returns the run's order.
+bool run(ShadowOrderTally& tally, int packets, std::uint64_t near_ticks, std::uint64_t far_ticks,
+         ShadowOrder mode = ShadowOrder::Auto) {
+  ShadowOrderChooser c(mode, &tally);
+  for (int i = 0; i < packets; ++i) {
+    const ShadowOrderChooser::Pick p = c.pick();
+    EXPECT_EQ(p.far_first, c.far_first());  // one order for the whole run
+    if (p.timed) c.record(8 * (p.far_first ? far_ticks : near_ticks), 8);
+  }
+  c.flush();
+  c.flush();  // adds nothing more
+  return c.far_first();
+}
+
+TEST(ShadowOrder, NamesParseAndBadTextIsAnError) {
+  for (const ShadowOrder o : {ShadowOrder::Auto, ShadowOrder::Near, ShadowOrder::Far}) {
+    EXPECT_EQ(parse_shadow_order(shadow_order_name(o)), o);
+  }
+  EXPECT_THROW((void)parse_shadow_order("nearest"), Error);
+  EXPECT_THROW((void)parse_shadow_order(""), Error);
+}
+
+TEST(ShadowOrder, FixedOrdersAndAutoWithoutTallyTimeNothing) {
+  ShadowOrderTally tally;
+  EXPECT_FALSE(run(tally, 64, 100, 10, ShadowOrder::Near));
+  EXPECT_TRUE(run(tally, 64, 10, 100, ShadowOrder::Far));
+  EXPECT_EQ(tally.rays[0].load() + tally.rays[1].load(), 0u);
+  EXPECT_EQ(tally.runs.load(), 0u);
+  ShadowOrderChooser alone;  // Auto without a tally: near-first, untimed
+  for (int i = 0; i < 32; ++i) {
+    const ShadowOrderChooser::Pick p = alone.pick();
+    EXPECT_FALSE(p.far_first);
+    EXPECT_FALSE(p.timed);
+  }
+}
+
+// Runs alternate until both orders have kMinRays timed rays, then the faster order is taken by
+// all runs but every kExplore-th; the warm-up packets of a run are never timed.
+TEST(ShadowOrder, AutoTriesBothThenTakesTheFasterAndKeepsExploring) {
+  for (const bool far_faster : {false, true}) {
+    SCOPED_TRACE(far_faster ? "far faster" : "near faster");
+    const std::uint64_t near_ticks = far_faster ? 300 : 100, far_ticks = far_faster ? 100 : 300;
+    ShadowOrderTally tally;
+    // 64 packets of 8 rays, 60 timed: 480 rays per run.
+    int runs = 0;
+    int far_runs = 0;
+    while (tally.rays[0].load() < ShadowOrderChooser::kMinRays || tally.rays[1].load() < ShadowOrderChooser::kMinRays) {
+      const bool far = run(tally, 64, near_ticks, far_ticks);
+      EXPECT_EQ(far, runs % 2 == 1) << "run " << runs;  // near, far, near, ...
+      far_runs += far ? 1 : 0;
+      ++runs;
+      ASSERT_LT(runs, 100);
+    }
+    EXPECT_EQ(tally.rays[0].load(), static_cast<std::uint64_t>(runs - far_runs) * 60 * 8);
+    EXPECT_EQ(tally.ticks[0].load(), tally.rays[0].load() * near_ticks);
+    EXPECT_EQ(tally.ticks[1].load(), tally.rays[1].load() * far_ticks);
+    int explored = 0;
+    for (int k = 0; k < 4 * static_cast<int>(ShadowOrderChooser::kExplore); ++k) {
+      const std::uint32_t n = tally.runs.load();
+      const bool far = run(tally, 64, near_ticks, far_ticks);
+      const bool explore = n % ShadowOrderChooser::kExplore == ShadowOrderChooser::kExplore - 1;
+      EXPECT_EQ(far, explore ? !far_faster : far_faster) << "run " << n;
+      explored += explore ? 1 : 0;
+    }
+    EXPECT_EQ(explored, 4);
+  }
+}
+
+// A run in the faster order times every kTimeEvery-th packet after the warm-up; an exploring
+// run, and every run before both orders have kMinRays, times every packet after it.
+TEST(ShadowOrder, WhichPacketsAreTimed) {
+  ShadowOrderTally tally;
+  tally.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
+  tally.rays[0] = ShadowOrderChooser::kMinRays;
+  tally.ticks[1] = 200 * ShadowOrderChooser::kMinRays;
+  tally.rays[1] = ShadowOrderChooser::kMinRays;
+  ShadowOrderChooser faster(ShadowOrder::Auto, &tally);  // run 0: near, the faster
+  EXPECT_FALSE(faster.far_first());
+  int timed = 0;
+  for (std::uint32_t i = 0; i < 40; ++i) {
+    const bool t = faster.pick().timed;
+    EXPECT_EQ(t, i >= ShadowOrderChooser::kWarmUp && (i - ShadowOrderChooser::kWarmUp) % ShadowOrderChooser::kTimeEvery == 0)
+        << i;
+    timed += t ? 1 : 0;
+  }
+  EXPECT_EQ(timed, static_cast<int>((40 - ShadowOrderChooser::kWarmUp + ShadowOrderChooser::kTimeEvery - 1) /
+                                    ShadowOrderChooser::kTimeEvery));
+  tally.runs = ShadowOrderChooser::kExplore - 1;
+  ShadowOrderChooser explorer(ShadowOrder::Auto, &tally);
+  EXPECT_TRUE(explorer.far_first());
+  for (std::uint32_t i = 0; i < 40; ++i) EXPECT_EQ(explorer.pick().timed, i >= ShadowOrderChooser::kWarmUp) << i;
+}
+
+}  // namespace
+}  // namespace rtc
