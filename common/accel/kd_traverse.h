@@ -562,33 +562,22 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const vfloat<N> far_start = max(t_split, near);   // NaN: near
       const vbool<N> go_near = active & (near <= reach(near_end));
       const vbool<N> go_far = active & (far_start <= reach(far));
-      // One decision per node for the whole packet.
-      if constexpr (kFarFirst) {
-        if (none(go_near)) {
-          index = far_child;
-          near = far_start;
-          active = go_far;
-        } else if (none(go_far)) {
-          index = near_child;
-          far = near_end;
-          active = go_near;
-        } else {
-          Entry& e = stack[depth++];
-          near.store(e.near);
-          near_end.store(e.far);
-          e.mask = bits(go_near);
-          e.node = near_child;
-          index = far_child;
-          near = far_start;
-          active = go_far;
-        }
-        continue;
-      }
+      // One decision per node for the whole packet. Where both children are entered, the far
+      // one is stacked (or, far-first, the near one).
       if (none(go_far)) {
         index = near_child;
         far = near_end;
         active = go_near;
       } else if (none(go_near)) {
+        index = far_child;
+        near = far_start;
+        active = go_far;
+      } else if constexpr (kFarFirst) {
+        Entry& e = stack[depth++];
+        near.store(e.near);
+        near_end.store(e.far);
+        e.mask = bits(go_near);
+        e.node = near_child;
         index = far_child;
         near = far_start;
         active = go_far;

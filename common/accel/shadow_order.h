@@ -52,13 +52,16 @@ struct ShadowOrderTally {
   std::atomic<std::uint64_t> ticks[2] = {0, 0};  // [far_first]
   std::atomic<std::uint64_t> rays[2] = {0, 0};
   std::atomic<std::uint32_t> runs = 0;  // choosers made
+  std::atomic<bool> far_preferred = false;  // the order runs take (but exploring ones)
 };
 
 /// Picks the walk order of a run of shadow packets (one light's rays over a tile, say): one
 /// order for the whole run, from the mean time per ray each order took in the shared tally's
 /// runs. Until both orders have kMinRays rays there, a run takes the one with fewer; then the
 /// faster one, except every kExplore-th run, which takes the other so that both means stay
-/// current. A run's own packets are timed after its first kWarmUp and added to the tally by
+/// current. "Faster" keeps the tally's preferred order until the other's mean is kMargin below
+/// its own: switching costs a warm-up, so two orders within noise of each other (spd-tree)
+/// should not take turns. A run's own packets are timed after its first kWarmUp and added to the tally by
 /// flush(). With a fixed order (Near, Far), or without a tally, it always answers one order
 /// (Near for Auto without a tally) and times nothing.
 ///
@@ -76,6 +79,7 @@ class ShadowOrderChooser {
   static constexpr std::uint32_t kWarmUp = 4;
   static constexpr std::uint32_t kTimeEvery = 8;  ///< of the runs taking the faster order
   static constexpr std::uint64_t kMinRays = 2048;
+  static constexpr double kMargin = 0.05;
 
   /// The walk order of a packet, and whether to time it (then record() what it took).
   struct Pick {
@@ -97,11 +101,16 @@ class ShadowOrderChooser {
       time_every_ = 1;
       return;
     }
-    // Mean ticks per ray compared without division: t1 / r1 < t0 / r0.
-    const bool far_faster = static_cast<double>(ticks[1]) * static_cast<double>(rays[0]) <
-                            static_cast<double>(ticks[0]) * static_cast<double>(rays[1]);
+    // Mean ticks per ray compared without division: the other order's t / r below
+    // (1 - kMargin) times the preferred one's.
+    const bool far = shared_->far_preferred.load(std::memory_order_relaxed);
+    const int p = far ? 1 : 0, o = 1 - p;
+    const bool other_faster = static_cast<double>(ticks[o]) * static_cast<double>(rays[p]) <
+                              (1.0 - kMargin) * static_cast<double>(ticks[p]) * static_cast<double>(rays[o]);
+    const bool preferred = other_faster ? !far : far;
+    if (other_faster) shared_->far_preferred.store(preferred, std::memory_order_relaxed);
     const bool explore = n % kExplore == kExplore - 1;
-    far_first_ = explore ? !far_faster : far_faster;
+    far_first_ = explore ? !preferred : preferred;
     time_every_ = explore ? 1 : kTimeEvery;
   }
 

@@ -78,6 +78,25 @@ TEST(ShadowOrder, AutoTriesBothThenTakesTheFasterAndKeepsExploring) {
   }
 }
 
+// An order within kMargin of the preferred one does not take over (switching costs a warm-up);
+// one clearly faster does.
+TEST(ShadowOrder, KeepsThePreferredOrderUnlessTheOtherIsClearlyFaster) {
+  ShadowOrderTally tally;
+  const auto settle = [&](std::uint64_t near_ticks, std::uint64_t far_ticks) {
+    int far_runs = 0;
+    for (int k = 0; k < 64; ++k) {
+      const std::uint32_t n = tally.runs.load();
+      const bool far = run(tally, 64, near_ticks, far_ticks);
+      if (n % ShadowOrderChooser::kExplore != ShadowOrderChooser::kExplore - 1) far_runs += far ? 1 : 0;
+    }
+    return far_runs;
+  };
+  EXPECT_LT(settle(100, 98), 8);  // far 2% faster: the runs stay near-first once settled
+  EXPECT_FALSE(tally.far_preferred.load());
+  EXPECT_GT(settle(100, 50), 8);  // far twice as fast: taken over
+  EXPECT_TRUE(tally.far_preferred.load());
+}
+
 // A run in the faster order times every kTimeEvery-th packet after the warm-up; an exploring
 // run, and every run before both orders have kMinRays, times every packet after it.
 TEST(ShadowOrder, WhichPacketsAreTimed) {
