@@ -481,7 +481,7 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
 /// the answer is the same (ShadowOrder).
 template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
-                                HitPacket<N>& hit, vbool<N>& occluded) {
+                       HitPacket<N>& hit, vbool<N>& occluded) {
   static_assert(kOcclusion || !kFarFirst, "closest hits are found near to far");
   const KdNode* nodes = tree.nodes().data();
   const TriRecord* records = tree.leaf_records().data();
@@ -751,14 +751,11 @@ inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> a
   return occ;
 }
 
-/// occluded() in the order `chooser` picks, telling it the time taken when it asks.
+/// occluded() in the order `chooser` picks, telling it the time taken.
 template <int N>
 inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, ShadowOrderChooser& chooser) {
-  const ShadowOrderChooser::Pick pick = chooser.pick();
-  if (!pick.timed) return occluded<N>(tree, ray, active, pick.far_first);
-  const std::uint64_t start = ShadowOrderChooser::now();
-  const vbool<N> occ = occluded<N>(tree, ray, active, pick.far_first);
-  chooser.record(ShadowOrderChooser::now() - start, static_cast<unsigned>(std::popcount(bits(active))));
+  const vbool<N> occ = occluded<N>(tree, ray, active, chooser.next());
+  chooser.done(static_cast<unsigned>(std::popcount(bits(active))));
   return occ;
 }
 

@@ -51,19 +51,23 @@ enum class ShadowOrder : std::uint8_t { Auto, Near, Far };
 struct ShadowOrderTally {
   std::atomic<std::uint64_t> ticks[2] = {0, 0};  // [far_first]
   std::atomic<std::uint64_t> rays[2] = {0, 0};
-  std::atomic<std::uint32_t> runs = 0;  // choosers made
+  std::atomic<std::uint32_t> runs = 0;  // runs started
   std::atomic<bool> far_preferred = false;  // the order runs take (but exploring ones)
 };
 
 /// Picks the walk order of a run of shadow packets (one light's rays over a tile, say): one
 /// order for the whole run, from the mean time per ray each order took in the shared tally's
-/// runs. Until both orders have kMinRays rays there, a run takes the one with fewer; then the
-/// faster one, except every kExplore-th run, which takes the other so that both means stay
-/// current. "Faster" keeps the tally's preferred order until the other's mean is kMargin below
-/// its own: switching costs a warm-up, so two orders within noise of each other (spd-tree)
-/// should not take turns. A run's own packets are timed after its first kWarmUp and added to the tally by
-/// flush(). With a fixed order (Near, Far), or without a tally, it always answers one order
-/// (Near for Auto without a tally) and times nothing.
+/// runs, decided when the run's first packet asks (a chooser no packet asks costs nothing and
+/// is not counted). Until both orders have kMinRays rays there, a run takes the one with
+/// fewer; then the preferred one, except every kExplore-th run, which takes the other so that
+/// both means stay current. The tally's preferred order changes only when the other's mean is
+/// kMargin below its own: switching costs a warm-up, so two orders within noise of each other
+/// (spd-tree) should not take turns. A run times its packets after its first kWarmUp (every
+/// one in exploring runs and before kMinRays, every kTimeEvery-th otherwise) and flush() adds
+/// them to the tally. With a fixed order (Near, Far), or without a tally, it always answers
+/// one order (Near for Auto without a tally) and times nothing.
+///
+/// Use: `far_first = next()` before a packet's walk, `done(rays)` after it.
 ///
 /// Why runs and warm-up: a packet walked in the order the packets before it did not take ran
 /// 1.5 times slower than in a run of its own order (spd-mount-s10: far-first 752 ticks per ray
@@ -77,19 +81,55 @@ class ShadowOrderChooser {
  public:
   static constexpr std::uint32_t kExplore = 16;
   static constexpr std::uint32_t kWarmUp = 4;
-  static constexpr std::uint32_t kTimeEvery = 8;  ///< of the runs taking the faster order
+  static constexpr std::uint32_t kTimeEvery = 8;  ///< of the runs taking the preferred order
   static constexpr std::uint64_t kMinRays = 2048;
   static constexpr double kMargin = 0.05;
 
-  /// The walk order of a packet, and whether to time it (then record() what it took).
-  struct Pick {
-    bool far_first = false;
-    bool timed = false;
-  };
-
   explicit ShadowOrderChooser(ShadowOrder mode = ShadowOrder::Auto, ShadowOrderTally* shared = nullptr)
-      : far_first_(mode == ShadowOrder::Far), shared_(mode == ShadowOrder::Auto ? shared : nullptr) {
+      : far_first_(mode == ShadowOrder::Far), shared_(mode == ShadowOrder::Auto ? shared : nullptr) {}
+
+  /// The next packet's walk order (the run's): true for far-first. Starts the packet's clock
+  /// when it is one to time (timing()).
+  [[nodiscard]] bool next() {
+    if (shared_ == nullptr) return far_first_;
+    if (packets_ == 0) start_run();
+    const std::uint32_t n = packets_++;
+    timing_ = n >= kWarmUp && (n - kWarmUp) % time_every_ == 0;
+    if (timing_) clock_ = __rdtsc();
+    return far_first_;
+  }
+
+  /// Whether the packet next() last answered for is timed.
+  [[nodiscard]] bool timing() const { return timing_; }
+
+  /// After the walk of the packet next() last answered for, of `rays` rays: its time, when timed.
+  void done(unsigned rays) {
+    if (timing_) record(__rdtsc() - clock_, rays);
+  }
+
+  /// Adds `ticks` (time stamp counter ticks) for `rays` rays to the run's figures; done() calls it.
+  void record(std::uint64_t ticks, unsigned rays) {
+    ticks_ += ticks;
+    rays_ += rays;
+  }
+
+  /// Adds the run's figures to the shared tally (once; later calls add nothing).
+  void flush() {
     if (shared_ == nullptr) return;
+    if (rays_ > 0) {
+      const int k = far_first_ ? 1 : 0;
+      shared_->ticks[k].fetch_add(ticks_, std::memory_order_relaxed);
+      shared_->rays[k].fetch_add(rays_, std::memory_order_relaxed);
+    }
+    shared_ = nullptr;
+    timing_ = false;
+  }
+
+  /// The run's order (decided by the first next()).
+  [[nodiscard]] bool far_first() const { return far_first_; }
+
+ private:
+  void start_run() {
     const std::uint32_t n = shared_->runs.fetch_add(1, std::memory_order_relaxed);
     std::uint64_t ticks[2], rays[2];
     for (int k = 0; k < 2; ++k) {
@@ -114,40 +154,12 @@ class ShadowOrderChooser {
     time_every_ = explore ? 1 : kTimeEvery;
   }
 
-  /// The next packet's order (the run's) and whether to time it.
-  [[nodiscard]] Pick pick() {
-    if (shared_ == nullptr) return Pick{far_first_, false};
-    const std::uint32_t n = packets_++;
-    return Pick{far_first_, n >= kWarmUp && (n - kWarmUp) % time_every_ == 0};
-  }
-
-  /// A time stamp in CPU clock ticks (the time stamp counter), for record().
-  [[nodiscard]] static std::uint64_t now() { return __rdtsc(); }
-
-  /// What a timed packet took: `ticks` (now() differences) for `rays`.
-  void record(std::uint64_t ticks, unsigned rays) {
-    ticks_ += ticks;
-    rays_ += rays;
-  }
-
-  /// Adds the run's figures to the shared tally (once; later calls add nothing).
-  void flush() {
-    if (shared_ == nullptr) return;
-    if (rays_ > 0) {
-      const int k = far_first_ ? 1 : 0;
-      shared_->ticks[k].fetch_add(ticks_, std::memory_order_relaxed);
-      shared_->rays[k].fetch_add(rays_, std::memory_order_relaxed);
-    }
-    shared_ = nullptr;
-  }
-
-  [[nodiscard]] bool far_first() const { return far_first_; }
-
- private:
   bool far_first_;
   ShadowOrderTally* shared_;
+  bool timing_ = false;
   std::uint32_t time_every_ = 1;
   std::uint32_t packets_ = 0;
+  std::uint64_t clock_ = 0;             // the timed packet's start
   std::uint64_t ticks_ = 0, rays_ = 0;  // this run's timed packets
 };
 

@@ -36,10 +36,10 @@ struct RayHit {
 
 /// Stream entry points of one ISA. With packets, every `packet_width` consecutive rays form a
 /// packet (give them as 2x2 pixel blocks for coherence); without, each ray is traced alone by
-/// the N = 1 kernel. Both give the same bits. Thread-safe. `occluded` walks each packet in the
-/// order a ShadowOrderChooser over the stream picks (ShadowOrder::Auto); `occluded_in_order`
-/// takes the order (the answers are the same in every order) and, for Auto, a tally shared by
-/// the calls (optional, thread-safe) that the choice learns from and adds to.
+/// the N = 1 kernel. Both give the same bits. Thread-safe. `occluded` walks near-first (Auto
+/// without a tally); `occluded_in_order` takes the order (the answers are the same in every
+/// order) and, for Auto, a tally shared by the calls (thread-safe) that each call's choice
+/// learns from and adds to (ShadowOrderChooser; without one, Auto is near-first).
 struct TraceKernels {
   Isa isa = Isa::Sse42;
   int packet_width = 4;

@@ -122,19 +122,16 @@ unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned 
   const RayPacket<N> p = rays.packet();
   unsigned blocked = 0;
   const FrameGeometry& g = *fs.geometry;
-  const ShadowOrderChooser::Pick pick = order.pick();
-  const std::uint64_t start = pick.timed ? ShadowOrderChooser::now() : 0;
+  const bool far_first = order.next();
   for (std::size_t k = 0; k < g.trees.size(); ++k) {
     const unsigned open = lanes_mask & ~blocked;
     if (open == 0) break;
     const TreeSpace* space = g.space(k);
     blocked |= bits(occluded<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), vbool<N>::from_bits(open),
-                                pick.far_first));
+                                far_first));
     if (by_static != nullptr && g.first_tree_static && k == 0) *by_static = blocked;
   }
-  if (pick.timed) {
-    order.record(ShadowOrderChooser::now() - start, static_cast<unsigned>(std::popcount(lanes_mask)));
-  }
+  order.done(static_cast<unsigned>(std::popcount(lanes_mask)));
   return blocked;
 }
 
@@ -246,10 +243,6 @@ void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) 
   marks.shadow(list.n, list.org, list.dir, list.t_end);
 }
 
-// Every instantiation does, for every lane, the same operations in the same order as the
-// general one (F = kAll) does for a frame with those features: what F leaves out is only work
-// whose result the frame never uses (a light loop over no lights, a mirror test no material
-// passes, a surface nothing reads), so the pixels are the same bits.
 /// Shadow-ray walk orders of a tile: one chooser per light for the primary hits' shadow rays and
 /// one for the mirror bounces' (points of another kind, often another preference), each
 /// learning from and adding to the renderer's shared tally for it (TileKernelOptions).
@@ -269,6 +262,10 @@ struct ShadowOrders {
   ShadowOrderChooser& at(std::size_t light, int depth) { return per_light[2 * light + (depth > 0 ? 1 : 0)]; }
 };
 
+// Every instantiation does, for every lane, the same operations in the same order as the
+// general one (F = kAll) does for a frame with those features: what F leaves out is only work
+// whose result the frame never uses (a light loop over no lights, a mirror test no material
+// passes, a surface nothing reads), so the pixels are the same bits.
 template <int N, unsigned F>
 void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
                     Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders) {

@@ -158,7 +158,8 @@ void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const R
   occ.resize(s.rays.size());
   for_chunks(s, [&](std::size_t first, std::size_t n) {
     if (shadow) {
-      k.occluded_in_order(fs.geometry->single_tree(), s.rays.data() + first, occ.data() + first, n, packets, order, tally);
+      k.occluded_in_order(fs.geometry->single_tree(), s.rays.data() + first, occ.data() + first, n, packets, order,
+                          tally);
     } else {
       k.intersect(fs.geometry->single_tree(), s.rays.data() + first, hits.data() + first, n, packets);
       if (refine) {
@@ -266,7 +267,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-skip-empty", no_skip_empty, "full mode: trace primary rays that miss the scene's bounds too");
   std::string shadow_order_text = "auto";
   app.add_option("--shadow-order", shadow_order_text,
-                 "where shadow rays' kd-tree walks start: auto (chosen per light from the work it took), near "
+                 "where shadow rays' kd-tree walks start: auto (chosen from the time each order took), near "
                  "(the ray's origin), far (the light's end); the same answers in every order")
       ->check(CLI::IsMember({"auto", "near", "far"}))
       ->capture_default_str();

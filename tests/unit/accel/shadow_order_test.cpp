@@ -15,9 +15,9 @@ bool run(ShadowOrderTally& tally, int packets, std::uint64_t near_ticks, std::ui
          ShadowOrder mode = ShadowOrder::Auto) {
   ShadowOrderChooser c(mode, &tally);
   for (int i = 0; i < packets; ++i) {
-    const ShadowOrderChooser::Pick p = c.pick();
-    EXPECT_EQ(p.far_first, c.far_first());  // one order for the whole run
-    if (p.timed) c.record(8 * (p.far_first ? far_ticks : near_ticks), 8);
+    const bool far_first = c.next();
+    EXPECT_EQ(far_first, c.far_first());  // one order for the whole run
+    if (c.timing()) c.record(8 * (far_first ? far_ticks : near_ticks), 8);
   }
   c.flush();
   c.flush();  // adds nothing more
@@ -36,13 +36,17 @@ TEST(ShadowOrder, FixedOrdersAndAutoWithoutTallyTimeNothing) {
   ShadowOrderTally tally;
   EXPECT_FALSE(run(tally, 64, 100, 10, ShadowOrder::Near));
   EXPECT_TRUE(run(tally, 64, 10, 100, ShadowOrder::Far));
+  {
+    ShadowOrderChooser unused(ShadowOrder::Auto, &tally);  // no packet asks: no run
+    unused.flush();
+  }
   EXPECT_EQ(tally.rays[0].load() + tally.rays[1].load(), 0u);
   EXPECT_EQ(tally.runs.load(), 0u);
   ShadowOrderChooser alone;  // Auto without a tally: near-first, untimed
   for (int i = 0; i < 32; ++i) {
-    const ShadowOrderChooser::Pick p = alone.pick();
-    EXPECT_FALSE(p.far_first);
-    EXPECT_FALSE(p.timed);
+    EXPECT_FALSE(alone.next());
+    EXPECT_FALSE(alone.timing());
+    alone.done(8);
   }
 }
 
@@ -106,10 +110,10 @@ TEST(ShadowOrder, WhichPacketsAreTimed) {
   tally.ticks[1] = 200 * ShadowOrderChooser::kMinRays;
   tally.rays[1] = ShadowOrderChooser::kMinRays;
   ShadowOrderChooser faster(ShadowOrder::Auto, &tally);  // run 0: near, the faster
-  EXPECT_FALSE(faster.far_first());
   int timed = 0;
   for (std::uint32_t i = 0; i < 40; ++i) {
-    const bool t = faster.pick().timed;
+    EXPECT_FALSE(faster.next());
+    const bool t = faster.timing();
     EXPECT_EQ(t, i >= ShadowOrderChooser::kWarmUp && (i - ShadowOrderChooser::kWarmUp) % ShadowOrderChooser::kTimeEvery == 0)
         << i;
     timed += t ? 1 : 0;
@@ -118,8 +122,10 @@ TEST(ShadowOrder, WhichPacketsAreTimed) {
                                     ShadowOrderChooser::kTimeEvery));
   tally.runs = ShadowOrderChooser::kExplore - 1;
   ShadowOrderChooser explorer(ShadowOrder::Auto, &tally);
-  EXPECT_TRUE(explorer.far_first());
-  for (std::uint32_t i = 0; i < 40; ++i) EXPECT_EQ(explorer.pick().timed, i >= ShadowOrderChooser::kWarmUp) << i;
+  for (std::uint32_t i = 0; i < 40; ++i) {
+    EXPECT_TRUE(explorer.next());
+    EXPECT_EQ(explorer.timing(), i >= ShadowOrderChooser::kWarmUp) << i;
+  }
 }
 
 }  // namespace
