@@ -478,7 +478,8 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
 /// Test is WaldTest or WatertightTest, matching the tree's records. kFarFirst (occlusion only):
 /// where both children are entered, the one farther along the rays first; the children and
 /// their segments are the same, so the same leaves are visited until every lane has a hit, and
-/// the answer is the same (ShadowOrder).
+/// the answer is the same (ShadowOrder). Packets (N > 1) never enter a child its parent marks as
+/// an empty leaf (KdNode::child_empty): it holds nothing to test.
 template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
                        HitPacket<N>& hit, vbool<N>& occluded) {
@@ -563,15 +564,28 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const vbool<N> go_near = active & (near <= reach(near_end));
       const vbool<N> go_far = active & (far_start <= reach(far));
       // One decision per node for the whole packet. Where both children are entered, the far
-      // one is stacked (or, far-first, the near one).
+      // one is stacked (or, far-first, the near one). A child that is an empty leaf holds
+      // nothing to test: it is passed by, not entered (its lanes would only pop the stack
+      // there), so the same triangles are tested in the same order.
+      // (Packets only: a single ray's empty-leaf visit is a few scalar instructions and mostly
+      // loads the line its sibling needs next, and testing the marks at every node measured
+      // 0.96-0.97x on single shadow rays.)
+      const bool near_empty = N > 1 && node.child_empty(sign);
+      const bool far_empty = N > 1 && node.child_empty(sign ^ 1u);
       if (none(go_far)) {
+        if (near_empty) goto pop;
         index = near_child;
         far = near_end;
         active = go_near;
-      } else if (none(go_near)) {
+      } else if (none(go_near) || near_empty) {
+        if (far_empty) goto pop;
         index = far_child;
         near = far_start;
         active = go_far;
+      } else if (far_empty) {
+        index = near_child;
+        far = near_end;
+        active = go_near;
       } else if constexpr (kFarFirst) {
         Entry& e = stack[depth++];
         near.store(e.near);
@@ -592,33 +606,34 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         active = go_near;
       }
       continue;
-    }
-
-    const TriRecord* leaf = records + node.prim_offset();
-    if (!intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
-      for (std::uint32_t i = 0; i < node.count; ++i) {
-        test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
-        if constexpr (kOcclusion) {
-          // A shadow ray stops at its first hit: occluded lanes test nothing more.
-          active &= !occluded;
-          if (none(active)) break;
+    } else {
+      const TriRecord* leaf = records + node.prim_offset();
+      if (!intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
+        for (std::uint32_t i = 0; i < node.count; ++i) {
+          test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
+          if constexpr (kOcclusion) {
+            // A shadow ray stops at its first hit: occluded lanes test nothing more.
+            active &= !occluded;
+            if (none(active)) break;
+          }
         }
       }
-    }
-    // An occluded lane is finished. A closest-hit lane skips a stacked subtree only when its
-    // hit lies before the subtree's segment, with a slack (decided per entry when it is
-    // popped, so a ray lying in a split plane, whose NaN split gives both children the whole
-    // segment, still visits the second child). A hit exactly on a leaf's far plane thus goes
-    // on into the next leaf, where a triangle at the same t may win the tie (higher id). The
-    // slack covers the float test's own error: it accepts points a rounding error outside a
-    // triangle (at an edge or shared vertex; t off by ~1e-6 relative for rays grazing the
-    // plane), so outside the leaves that reference it, and a nearer triangle's leaf may start
-    // just after the hit already found. With it the answer is the brute-force loop's, whatever
-    // the tree's planes (tests/stress: fans, grazing rays, rays in split planes).
-    if constexpr (kOcclusion) {
-      done |= occluded;
+      // An occluded lane is finished. A closest-hit lane skips a stacked subtree only when its
+      // hit lies before the subtree's segment, with a slack (decided per entry when it is
+      // popped, so a ray lying in a split plane, whose NaN split gives both children the whole
+      // segment, still visits the second child). A hit exactly on a leaf's far plane thus goes
+      // on into the next leaf, where a triangle at the same t may win the tie (higher id). The
+      // slack covers the float test's own error: it accepts points a rounding error outside a
+      // triangle (at an edge or shared vertex; t off by ~1e-6 relative for rays grazing the
+      // plane), so outside the leaves that reference it, and a nearer triangle's leaf may start
+      // just after the hit already found. With it the answer is the brute-force loop's,
+      // whatever the tree's planes (tests/stress: fans, grazing rays, rays in split planes).
+      if constexpr (kOcclusion) {
+        done |= occluded;
+      }
     }
 
+  pop:
     for (;;) {
       if (depth == 0) return;
       const Entry& e = stack[--depth];

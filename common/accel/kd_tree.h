@@ -21,9 +21,11 @@
 
 namespace rtc {
 
-/// 8 bytes. Inner node: bits = (index of the left child << 2) | axis (0, 1, 2), children
-/// adjacent (right = left + 1), `split` the plane position. Leaf: bits = (offset into
-/// KdTree::prim_refs << 2) | 3, `count` the number of triangle references.
+/// 8 bytes. Inner node: bits = (index of the left child << 4) | (empty children << 2) | axis
+/// (0, 1, 2), children adjacent (right = left + 1), `split` the plane position; bit c of the
+/// empty children (bits 2-3) is set when child left + c is a leaf without triangles, so a walk
+/// can pass it by without loading it. Leaf: bits = (offset into KdTree::prim_refs << 2) | 3,
+/// `count` the number of triangle references.
 struct KdNode {
   std::uint32_t bits = 3;
   union {
@@ -31,9 +33,32 @@ struct KdNode {
     std::uint32_t count = 0;
   };
 
+  /// The most nodes a tree may have: inner nodes keep 28 bits for the left child's index.
+  static constexpr std::uint64_t kMaxNodes = std::uint64_t{1} << 28;
+
+  /// An inner node over children left and left + 1; `empty` as empty_children().
+  [[nodiscard]] static KdNode inner(std::uint64_t left, int axis, float split, std::uint32_t empty = 0) {
+    KdNode n;
+    n.bits = (static_cast<std::uint32_t>(left) << 4) | (empty << 2) | static_cast<std::uint32_t>(axis);
+    n.split = split;
+    return n;
+  }
+  /// A leaf over `count` references from prim_refs[offset].
+  [[nodiscard]] static KdNode leaf(std::uint64_t offset, std::uint32_t count) {
+    KdNode n;
+    n.bits = (static_cast<std::uint32_t>(offset) << 2) | 3u;
+    n.count = count;
+    return n;
+  }
+
   [[nodiscard]] bool is_leaf() const { return (bits & 3u) == 3u; }
+  [[nodiscard]] bool is_empty_leaf() const { return is_leaf() && count == 0; }
   [[nodiscard]] int axis() const { return static_cast<int>(bits & 3u); }
-  [[nodiscard]] std::uint32_t left() const { return bits >> 2; }
+  [[nodiscard]] std::uint32_t left() const { return bits >> 4; }
+  /// Inner nodes: bit c set when child left() + c is an empty leaf.
+  [[nodiscard]] std::uint32_t empty_children() const { return (bits >> 2) & 3u; }
+  /// Inner nodes: whether child left() + c (c = 0, 1) is an empty leaf.
+  [[nodiscard]] bool child_empty(std::uint32_t c) const { return (bits & (4u << c)) != 0; }
   [[nodiscard]] std::uint32_t prim_offset() const { return bits >> 2; }
 };
 static_assert(sizeof(KdNode) == 8);

@@ -364,10 +364,7 @@ struct Block {
   // triangles are too), and adds its `count` references' share of the SAH cost.
   void add_leaf(std::size_t index, std::span<const std::uint32_t> tris, std::span<const std::uint32_t> local,
                 std::size_t count, float area, float intersection_cost) {
-    KdNode leaf;
-    leaf.bits = (static_cast<std::uint32_t>(refs.size()) << 2) | 3u;
-    leaf.count = static_cast<std::uint32_t>(local.size());
-    nodes[index] = leaf;
+    nodes[index] = KdNode::leaf(refs.size(), static_cast<std::uint32_t>(local.size()));
     for (std::uint32_t i : local) refs.push_back(tris[i]);
     ++leaves;
     if (local.empty()) ++empty_leaves;
@@ -1567,10 +1564,7 @@ class MaskBuilder {
       const Bits right = mask & (split.planar_left ? plane.above_at<W>(chosen) : plane.above_at<W>(chosen) | in_plane);
       const std::size_t first = out_.nodes.size();
       out_.nodes.resize(first + 2);
-      KdNode inner;
-      inner.bits = (static_cast<std::uint32_t>(first) << 2) | static_cast<std::uint32_t>(split.axis);
-      inner.split = split.pos;
-      out_.nodes[task.index] = inner;
+      out_.nodes[task.index] = KdNode::inner(first, split.axis, split.pos);
       Aabb left_box = box, right_box = box;
       left_box.hi[split.axis] = split.pos;
       right_box.lo[split.axis] = split.pos;
@@ -1839,10 +1833,7 @@ class BlockBuilder {
 
     const std::size_t first = out_.nodes.size();
     out_.nodes.resize(first + 2);
-    KdNode inner;
-    inner.bits = (static_cast<std::uint32_t>(first) << 2) | static_cast<std::uint32_t>(split.axis);
-    inner.split = p;
-    out_.nodes[index] = inner;
+    out_.nodes[index] = KdNode::inner(first, split.axis, p);
     // The straddlers' bounds in the left child, then in the right, then back to these.
     const std::size_t restore = s_.restore.size();
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
@@ -2187,12 +2178,10 @@ struct Placer {
     if (t.axis < 0) {
       const std::vector<KdNode>& local = t.block.nodes;
       auto relocate = [&](KdNode n) {
-        if (n.is_leaf()) {
-          n.bits = static_cast<std::uint32_t>((n.prim_offset() + ref_base) << 2) | 3u;
-        } else {
-          n.bits = static_cast<std::uint32_t>((n.left() - 1 + node_base) << 2) | static_cast<std::uint32_t>(n.axis());
-        }
-        return n;
+        if (n.is_leaf()) return KdNode::leaf(n.prim_offset() + ref_base, n.count);
+        const std::uint32_t empty = (local[n.left()].is_empty_leaf() ? 1u : 0u) |
+                                    (local[n.left() + 1].is_empty_leaf() ? 2u : 0u);
+        return KdNode::inner(n.left() - 1 + node_base, n.axis(), n.split, empty);
       };
       nodes[index] = relocate(local[0]);
       for (std::size_t i = 1; i < local.size(); ++i) nodes[node_base + i - 1] = relocate(local[i]);
@@ -2201,12 +2190,10 @@ struct Placer {
       }
       return;
     }
-    KdNode inner;
-    inner.bits = static_cast<std::uint32_t>(node_base << 2) | static_cast<std::uint32_t>(t.axis);
-    inner.split = t.split;
-    nodes[index] = inner;
     const TopNode& l = *t.child[0];
     const TopNode& r = *t.child[1];
+    const auto empty_leaf = [](const TopNode& c) { return c.axis < 0 && c.block.nodes[0].is_empty_leaf(); };
+    nodes[index] = KdNode::inner(node_base, t.axis, t.split, (empty_leaf(l) ? 1u : 0u) | (empty_leaf(r) ? 2u : 0u));
     auto place_left = [&] { place(l, node_base, node_base + 2, ref_base); };
     auto place_right = [&] { place(r, node_base + 1, node_base + 2 + l.nodes_below, ref_base + l.refs); };
     if (t.nodes_below > 65536) {
@@ -2384,7 +2371,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
-  if (node_total >= (1u << 30)) throw Error("kd-tree: more than 2^30 nodes (the 8-byte node format's limit)");
+  if (node_total >= KdNode::kMaxNodes) throw Error("kd-tree: more than 2^28 nodes (the 8-byte node format's limit)");
   if (top->refs >= (1u << 30)) {
     throw Error("kd-tree: more than 2^30 triangle references (the 8-byte node format's limit)");
   }

@@ -258,6 +258,35 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   }
 }
 
+// The traversal passes by a child marked empty without loading it, so a mark on a child with
+// triangles would lose hits, and a missing mark costs a visit. Every inner node's marks must
+// say exactly which of its children are empty leaves: in the binned top levels (walled_gap's
+// 70,000 triangles reach them), the event sweep and the bit-mask stage below them.
+TEST(KdTree, InnerNodesMarkExactlyTheirEmptyChildren) {
+  for (const Soup& s : {walled_gap(), sphere_and_grid(24), random_soup(7, 5000, 0.05f)}) {
+    for (int mask_below : {0, -1}) {
+      KdBuildOptions options;
+      options.mask_below = mask_below;
+      const KdTree tree = KdTree::build(s.positions, s.triangles, options);
+      std::size_t marked = 0, unmarked_leaves = 0;
+      for (std::size_t i = 0; i < tree.nodes().size(); ++i) {
+        const KdNode& n = tree.nodes()[i];
+        if (n.is_leaf()) continue;
+        for (std::uint32_t c = 0; c < 2; ++c) {
+          const KdNode& child = tree.nodes()[n.left() + c];
+          const bool empty = child.is_leaf() && child.count == 0;
+          ASSERT_EQ(((n.empty_children() >> c) & 1u) != 0, empty) << "node " << i << ", child " << c;
+          marked += empty ? 1 : 0;
+          unmarked_leaves += child.is_leaf() && !empty ? 1 : 0;
+        }
+      }
+      EXPECT_EQ(marked, tree.stats().empty_leaves);
+      EXPECT_GT(marked, 0u);
+      EXPECT_GT(unmarked_leaves, 0u);
+    }
+  }
+}
+
 TEST(KdTree, BuildIsIndependentOfThreadCount) {
   const Soup s = random_soup(3, 70000, 0.02f);  // above the parallel big-node threshold
   for (bool clip : {true, false}) {
