@@ -5,9 +5,15 @@ One table per scene (as the tracer issue's closing note asks): triangles, build 
 Embree), primary and shadow M rays/s for each rtc ISA and each Embree mode, the ratio to
 Embree's best, and full-frame ms beside the Embree renderer with the same shading. A summary
 table of the ratios over all scenes comes first.
+
+Lines carry the sweep they came from ("run", run_shared_scenes.sh's RUNS; lines without one are
+one run). Each figure is the median over the runs of that scene, thread count and mode (each
+run's figure is already rtc-bench's median over its reps); ratios are medians of the per-run
+ratios, each taken within one process, and the summary gives their range over the runs.
 """
 import json
 import os
+import statistics
 import sys
 from collections import defaultdict
 
@@ -23,11 +29,39 @@ def isa_figure(row, isa):
     return row.get("isas", {}).get(isa, {}).get("mrays_per_s")
 
 
+def median_row(runs):
+    """One row whose every number is the median of that number over the runs' rows (nested
+    objects too); anything else (names, flags) is the first run's."""
+    first = runs[0]
+    if isinstance(first, dict):
+        return {k: median_row([r[k] for r in runs if isinstance(r, dict) and k in r]) for k in first}
+    if isinstance(first, (int, float)) and not isinstance(first, bool):
+        values = [r for r in runs if isinstance(r, (int, float)) and not isinstance(r, bool)]
+        # Counts (triangles, nodes, rays) stay whole numbers.
+        return statistics.median_low(values) if all(isinstance(v, int) for v in values) else statistics.median(values)
+    return first
+
+
+def span(runs, key):
+    """The range of runs' figure `key` as "a-b" (or "" for one run)."""
+    values = [r[key] for r in runs if key in r]
+    if len(values) < 2:
+        return ""
+    return f" ({min(values):.2f}-{max(values):.2f})"
+
+
 def main(path):
     rows = [json.loads(line) for line in open(path) if line.strip()]
-    by = defaultdict(dict)
+    grouped = defaultdict(list)
     for r in rows:
-        by[(r["scene"], r["threads"])][r["mode"]] = r
+        grouped[(r["scene"], r["threads"], r["mode"])].append(r)
+    runs = max(len(v) for v in grouped.values())
+    by = defaultdict(dict)
+    spans = {}
+    for (scene, threads, mode), group in grouped.items():
+        by[(scene, threads)][mode] = median_row(group)
+        key = "ratio_vs_embree_frame" if mode == "full" else "ratio_vs_embree_best"
+        spans[(scene, threads, mode)] = span(group, key)
     scenes = sorted({k[0] for k in by}, key=lambda s: (min(by[k]["primary"]["triangles"] for k in by if k[0] == s), s))
     any_row = next(iter(rows))
     print("# rtc-bench --compare-embree on the shared scenes\n")
@@ -36,10 +70,11 @@ def main(path):
     embree_isa = "AVX-512" if any("embree-16" in r.get("embree", {}) for r in rows) else "AVX2"
     # The command that regenerates this file: the results' name is the JSON lines' file name.
     name = os.path.splitext(os.path.basename(path))[0]
-    command = "tests/bench/run_shared_scenes.sh" + ("" if name == "shared_scenes" else f" ../shared/scenes 5 {name}")
+    command = "tests/bench/run_shared_scenes.sh" + ("" if name == "shared_scenes" and runs == 3 else f" ../shared/scenes 5 {name} {runs}")
     print(f"Regenerate with `{command}` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
           f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
-          f"({any_row['reps']} here). Throughput in M rays/s. rtc's headline figure is its best ISA ({any_row['isa']}); "
+          f"({any_row['reps']} here), then over {runs} run{'s' if runs > 1 else ''} of the whole sweep "
+          "(the ratios: medians of each run's ratios, with their range over the runs in brackets in the summary). Throughput in M rays/s. rtc's headline figure is its best ISA ({any_row['isa']}); "
           "ratio = that / Embree's fastest mode. Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
           "quality; s/M = rtc build seconds per million triangles. Full frame: rtc's Whitted renderer (shadows + "
           "reflections) against the same renderer and shading with every ray traced by Embree's packet calls; "
@@ -62,9 +97,11 @@ def main(path):
             print(f'| {scene} | {tris:,} | {thr} | {build:.0f} | {build / 1e3 / max(tris, 1) * 1e6:.2f} | {hq:.0f} | '
                   f'{fmt(build / hq if hq else None)} | {p.get("mrays_per_s", 0):.2f} | {fmt(p.get("mrays_per_s_refined"))} | '
                   f'{p.get("embree_best_mrays_per_s", 0):.2f} | '
-                  f'**{p.get("ratio_vs_embree_best", 0):.2f}** | {s.get("mrays_per_s", 0):.2f} | '
-                  f'{s.get("embree_best_mrays_per_s", 0):.2f} | **{s.get("ratio_vs_embree_best", 0):.2f}** | '
-                  f'{f.get("frame_ms", 0):.0f} | {f.get("embree_frame_ms", 0):.0f} | **{f.get("ratio_vs_embree_frame", 0):.2f}** |')
+                  f'**{p.get("ratio_vs_embree_best", 0):.2f}**{spans.get((scene, thr, "primary"), "")} | '
+                  f'{s.get("mrays_per_s", 0):.2f} | {s.get("embree_best_mrays_per_s", 0):.2f} | '
+                  f'**{s.get("ratio_vs_embree_best", 0):.2f}**{spans.get((scene, thr, "shadow"), "")} | '
+                  f'{f.get("frame_ms", 0):.0f} | {f.get("embree_frame_ms", 0):.0f} | '
+                  f'**{f.get("ratio_vs_embree_frame", 0):.2f}**{spans.get((scene, thr, "full"), "")} |')
     print()
     for scene in scenes:
         first = next(by[k] for k in sorted(by) if k[0] == scene)["primary"]
