@@ -36,10 +36,12 @@ struct KdNode {
   /// The most nodes a tree may have: inner nodes keep 28 bits for the left child's index.
   static constexpr std::uint64_t kMaxNodes = std::uint64_t{1} << 28;
 
-  /// An inner node over children left and left + 1; `empty` as empty_children().
-  [[nodiscard]] static KdNode inner(std::uint64_t left, int axis, float split, std::uint32_t empty = 0) {
+  /// An inner node over children left and left + 1, marking those that are empty leaves.
+  [[nodiscard]] static KdNode inner(std::uint64_t left, int axis, float split, bool left_empty = false,
+                                    bool right_empty = false) {
     KdNode n;
-    n.bits = (static_cast<std::uint32_t>(left) << 4) | (empty << 2) | static_cast<std::uint32_t>(axis);
+    n.bits = (static_cast<std::uint32_t>(left) << 4) | (left_empty ? 4u : 0u) | (right_empty ? 8u : 0u) |
+             static_cast<std::uint32_t>(axis);
     n.split = split;
     return n;
   }
@@ -55,8 +57,6 @@ struct KdNode {
   [[nodiscard]] bool is_empty_leaf() const { return is_leaf() && count == 0; }
   [[nodiscard]] int axis() const { return static_cast<int>(bits & 3u); }
   [[nodiscard]] std::uint32_t left() const { return bits >> 4; }
-  /// Inner nodes: bit c set when child left() + c is an empty leaf.
-  [[nodiscard]] std::uint32_t empty_children() const { return (bits >> 2) & 3u; }
   /// Inner nodes: whether child left() + c (c = 0, 1) is an empty leaf.
   [[nodiscard]] bool child_empty(std::uint32_t c) const { return (bits & (4u << c)) != 0; }
   [[nodiscard]] std::uint32_t prim_offset() const { return bits >> 2; }

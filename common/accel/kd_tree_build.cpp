@@ -2179,9 +2179,8 @@ struct Placer {
       const std::vector<KdNode>& local = t.block.nodes;
       auto relocate = [&](KdNode n) {
         if (n.is_leaf()) return KdNode::leaf(n.prim_offset() + ref_base, n.count);
-        const std::uint32_t empty = (local[n.left()].is_empty_leaf() ? 1u : 0u) |
-                                    (local[n.left() + 1].is_empty_leaf() ? 2u : 0u);
-        return KdNode::inner(n.left() - 1 + node_base, n.axis(), n.split, empty);
+        return KdNode::inner(n.left() - 1 + node_base, n.axis(), n.split, local[n.left()].is_empty_leaf(),
+                             local[n.left() + 1].is_empty_leaf());
       };
       nodes[index] = relocate(local[0]);
       for (std::size_t i = 1; i < local.size(); ++i) nodes[node_base + i - 1] = relocate(local[i]);
@@ -2193,7 +2192,7 @@ struct Placer {
     const TopNode& l = *t.child[0];
     const TopNode& r = *t.child[1];
     const auto empty_leaf = [](const TopNode& c) { return c.axis < 0 && c.block.nodes[0].is_empty_leaf(); };
-    nodes[index] = KdNode::inner(node_base, t.axis, t.split, (empty_leaf(l) ? 1u : 0u) | (empty_leaf(r) ? 2u : 0u));
+    nodes[index] = KdNode::inner(node_base, t.axis, t.split, empty_leaf(l), empty_leaf(r));
     auto place_left = [&] { place(l, node_base, node_base + 2, ref_base); };
     auto place_right = [&] { place(r, node_base + 1, node_base + 2 + l.nodes_below, ref_base + l.refs); };
     if (t.nodes_below > 65536) {
