@@ -19,6 +19,7 @@
 #include "common/accel/kd_tree.h"
 #include "common/accel/shadow_order.h"
 #include "common/accel/trace.h"
+#include "common/accel/walk_stats.h"
 #include "common/simd/simd.h"
 
 RTC_ISA_BEGIN
@@ -537,6 +538,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   active &= near <= reach(far);
   if (none(active)) return;
   const Test<N> test(ray, active);
+  WalkCounter<kWalkStats> stats(N > 1, kOcclusion);  // counts nothing unless built with RTC_WALK_STATS
+  if constexpr (kWalkStats) stats.start(static_cast<std::uint32_t>(std::popcount(bits(active))));
 
   // Plain arrays, not vfloat members: a stack of 64 vector entries would otherwise be
   // zero-initialised on every call, which measured as a large share of a primary ray's cost.
@@ -554,6 +557,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   for (;;) {
     const KdNode node = nodes[index];
     if (!node.is_leaf()) {
+      stats.inner();
       const int axis = node.axis();
       const vfloat<N> t_split = (vfloat<N>(node.split) - ray.org[axis]) * inv_dir[axis];
       const std::uint32_t sign = (sign_bits >> axis) & 1u;
@@ -587,6 +591,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         far = near_end;
         active = go_near;
       } else if constexpr (kFarFirst) {
+        stats.push();
         Entry& e = stack[depth++];
         near.store(e.near);
         near_end.store(e.far);
@@ -596,6 +601,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         near = far_start;
         active = go_far;
       } else {
+        stats.push();
         Entry& e = stack[depth++];
         far_start.store(e.near);
         far.store(e.far);
@@ -608,8 +614,12 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       continue;
     } else {
       const TriRecord* leaf = records + node.prim_offset();
-      if (!intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
+      stats.leaf(node.count);
+      if (intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
+        stats.tests(node.count, 1);  // one live lane, the leaf's triangles side by side
+      } else {
         for (std::uint32_t i = 0; i < node.count; ++i) {
+          if constexpr (kWalkStats) stats.tests(1, static_cast<std::uint32_t>(std::popcount(bits(active))));
           test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
           if constexpr (kOcclusion) {
             // A shadow ray stops at its first hit: occluded lanes test nothing more.

@@ -20,6 +20,7 @@
 #include <tbb/parallel_for.h>
 
 #include "common/accel/trace.h"
+#include "common/accel/walk_stats.h"
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
@@ -168,6 +169,13 @@ void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const R
       }
     }
   });
+}
+
+// A walk tally (stats builds, RTC_WALK_STATS) as JSON: its totals, over all repetitions.
+nlohmann::json walk_json(const rtc::WalkStats& w) {
+  return {{"walks", w.walks},   {"lanes", w.lanes},   {"inner", w.inner},         {"leaves", w.leaves},
+          {"empty_leaves", w.empty_leaves},              {"pushes", w.pushes}, {"tests", w.tests},
+          {"test_lanes", w.test_lanes}};
 }
 
 std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {
@@ -425,8 +433,24 @@ int run(int argc, char** argv) {
         trace_stream(kernels, *fs, s, shadow, packets, scratch, occ, refine, shadow_order,
                      packets ? &tally_packets : &tally_single);
       };
+      rtc::reset_walk_stats();
       const double ms_packet = time_median_ms(reps, [&] { ours(true, false); });
+      // A packet pass walks packets and, for octant groups of one lane, single rays.
+      const rtc::WalkStats packet_walks = rtc::walk_stats(true, shadow);
+      const rtc::WalkStats lone_walks = rtc::walk_stats(false, shadow);
+      rtc::reset_walk_stats();
       const double ms_single = time_median_ms(reps, [&] { ours(false, false); });
+      const rtc::WalkStats single_walks = rtc::walk_stats(false, shadow);
+      if constexpr (rtc::kWalkStats) {
+        out["walks_packets"] = walk_json(packet_walks);
+        out["walks_packet_lone_lanes"] = walk_json(lone_walks);
+        out["walks_single"] = walk_json(single_walks);
+        if (!json) {
+          std::printf("  %-7s walks of %d-wide packets: %s\n          lone lanes of those: %s\n          single rays: %s\n",
+                      mode.c_str(), kernels.packet_width, packet_walks.to_string().c_str(),
+                      lone_walks.to_string().c_str(), single_walks.to_string().c_str());
+        }
+      }
       const double rays = static_cast<double>(s.real);
       out["rays"] = s.real;
       out["frame_ms"] = ms_packet;

@@ -1,0 +1,84 @@
+// What kd-tree walks did: inner-node steps, leaves, triangle tests and the lanes live in them,
+// per walk. Compiled in only with the CMake option RTC_WALK_STATS (the `stats` preset): the
+// counting costs trace time, so a default build counts nothing and its walks carry no trace of
+// it. rtc-bench prints the counts per mode (tests/bench/run_walk_stats.sh tabulates the shared
+// scenes). Not compiled per ISA.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#ifndef RTC_WALK_STATS
+#define RTC_WALK_STATS 0
+#endif
+
+namespace rtc {
+
+/// Whether this build counts (RTC_WALK_STATS).
+inline constexpr bool kWalkStats = RTC_WALK_STATS != 0;
+
+/// Totals over walks. A walk is one traverse_coherent call: a packet (or a same-octant group of
+/// its lanes) or one ray. Lanes are counted where the walk starts (those whose segment meets the
+/// tree's box) and at each triangle test (test_lanes: the lanes live in it).
+struct WalkStats {
+  std::uint64_t walks = 0;
+  std::uint64_t lanes = 0;
+  std::uint64_t inner = 0;         // inner-node steps
+  std::uint64_t leaves = 0;        // leaves with triangles entered
+  std::uint64_t empty_leaves = 0;  // empty leaves entered (packets pass marked ones by)
+  std::uint64_t pushes = 0;        // subtrees stacked
+  std::uint64_t tests = 0;         // triangle records tested (a leaf tested side by side counts each)
+  std::uint64_t test_lanes = 0;
+
+  WalkStats& operator+=(const WalkStats& o);
+  /// Per walk: "walks W, lanes L/walk, inner I, leaves F (+E empty), pushes P, tests T x N lanes".
+  [[nodiscard]] std::string to_string() const;
+};
+
+/// The totals kept: walks of one ray (`packet` false) or of packets, closest hit or occlusion.
+[[nodiscard]] WalkStats walk_stats(bool packet, bool occlusion);
+/// Sets every total to zero (call it with no walk running).
+void reset_walk_stats();
+/// Adds one walk's counts to its totals (thread-safe). Called by the walks of a stats build only.
+void add_walk_stats(bool packet, bool occlusion, const WalkStats& s);
+
+/// One walk's counts, added to the totals when it goes out of scope. Where kWalkStats is false
+/// every member function is empty and the object holds nothing, so the walk compiles as if it
+/// were not there.
+template <bool kEnabled>
+struct WalkCounter {
+  WalkCounter(bool, bool) {}
+  void start(std::uint32_t) {}
+  void inner() {}
+  void push() {}
+  void leaf(std::uint32_t) {}
+  void tests(std::uint32_t, std::uint32_t) {}
+};
+
+template <>
+struct WalkCounter<true> {
+  WalkCounter(bool packet, bool occlusion) : packet_(packet), occlusion_(occlusion) {}
+  WalkCounter(const WalkCounter&) = delete;
+  WalkCounter& operator=(const WalkCounter&) = delete;
+  ~WalkCounter() {
+    if (s_.walks != 0) add_walk_stats(packet_, occlusion_, s_);
+  }
+  void start(std::uint32_t lanes) {
+    s_.walks = 1;
+    s_.lanes = lanes;
+  }
+  void inner() { ++s_.inner; }
+  void push() { ++s_.pushes; }
+  void leaf(std::uint32_t count) { ++(count == 0 ? s_.empty_leaves : s_.leaves); }
+  // `count` triangles tested, each with `lanes` live lanes.
+  void tests(std::uint32_t count, std::uint32_t lanes) {
+    s_.tests += count;
+    s_.test_lanes += static_cast<std::uint64_t>(count) * lanes;
+  }
+
+ private:
+  WalkStats s_;
+  bool packet_, occlusion_;
+};
+
+}  // namespace rtc

@@ -1,0 +1,148 @@
+// Walk counts (RTC_WALK_STATS): summed and printed right, nothing counted in a default build,
+// and in a stats build (the stats preset) counts that follow from the tree and the rays.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "common/accel/kd_tree.h"
+#include "common/accel/trace.h"
+#include "common/accel/walk_stats.h"
+
+namespace rtc {
+namespace {
+
+TEST(WalkStats, SumsAndPrintsPerWalk) {
+  WalkStats a;
+  a.walks = 2;
+  a.lanes = 16;
+  a.inner = 10;
+  a.leaves = 4;
+  a.empty_leaves = 1;
+  a.pushes = 3;
+  a.tests = 8;
+  a.test_lanes = 20;
+  WalkStats b = a;
+  b += a;
+  EXPECT_EQ(b.walks, 4u);
+  EXPECT_EQ(b.test_lanes, 40u);
+  EXPECT_EQ(b.to_string(),
+            "walks 4, lanes 8.00/walk, inner 5.00, leaves 2.00 (+0.50 empty), pushes 1.50, tests 4.00 x 2.50 lanes");
+  EXPECT_EQ(WalkStats{}.to_string(),
+            "walks 0, lanes 0.00/walk, inner 0.00, leaves 0.00 (+0.00 empty), pushes 0.00, tests 0.00 x 0.00 lanes");
+}
+
+// Rays down the z axis through a grid of n x n unit squares (two triangles each) at z = 0,
+// one ray per square (inside one triangle, off the diagonal), all starting above the grid.
+struct Grid {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::uvec3> triangles;
+  std::vector<RayQuery> rays;
+};
+
+Grid grid(int n) {
+  Grid g;
+  for (int y = 0; y <= n; ++y) {
+    for (int x = 0; x <= n; ++x) g.positions.emplace_back(static_cast<float>(x), static_cast<float>(y), 0.0f);
+  }
+  const auto v = [n](int x, int y) { return static_cast<std::uint32_t>(y * (n + 1) + x); };
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      g.triangles.emplace_back(v(x, y), v(x + 1, y), v(x + 1, y + 1));
+      g.triangles.emplace_back(v(x, y), v(x + 1, y + 1), v(x, y + 1));
+      RayQuery r;
+      r.org = glm::vec3(static_cast<float>(x) + 0.3f, static_cast<float>(y) + 0.6f, 1.0f);
+      r.dir = glm::vec3(0.0f, 0.0f, -1.0f);
+      r.t_min = 0.0f;
+      r.t_max = 2.0f;  // the grid at t = 1
+      g.rays.push_back(r);
+    }
+  }
+  return g;
+}
+
+TEST(WalkStats, CountsWhatTheWalksDid) {
+  const Grid g = grid(16);
+  const KdTree tree = KdTree::build(g.positions, g.triangles, KdBuildOptions{});
+  std::vector<RayHit> hits(g.rays.size());
+  std::vector<std::uint8_t> occluded(g.rays.size());
+  const TraceKernels& k = trace_kernels();
+
+  reset_walk_stats();
+  k.intersect(tree, g.rays.data(), hits.data(), g.rays.size(), false);
+  const WalkStats single = walk_stats(false, false);
+  for (const RayHit& h : hits) ASSERT_NE(h.prim, kNoHit);
+  reset_walk_stats();
+  k.intersect(tree, g.rays.data(), hits.data(), g.rays.size(), true);
+  const WalkStats packets = walk_stats(true, false);
+  const WalkStats lone = walk_stats(false, false);
+  reset_walk_stats();
+  k.occluded(tree, g.rays.data(), occluded.data(), g.rays.size(), false);
+  const WalkStats shadow = walk_stats(false, true);
+  reset_walk_stats();
+
+  if (!kWalkStats) {
+    // A default build counts nothing: the walks carry no counting code.
+    for (const WalkStats& s : {single, packets, lone, shadow}) {
+      EXPECT_EQ(s.walks, 0u);
+      EXPECT_EQ(s.inner, 0u);
+      EXPECT_EQ(s.tests, 0u);
+    }
+    return;
+  }
+  const std::uint64_t rays = g.rays.size();
+  // One walk per ray, one lane each; every ray reaches the grid, so a leaf with triangles.
+  EXPECT_EQ(single.walks, rays);
+  EXPECT_EQ(single.lanes, rays);
+  EXPECT_EQ(single.test_lanes, single.tests);
+  EXPECT_GE(single.leaves, rays);
+  EXPECT_GE(single.tests, rays);
+  EXPECT_LE(single.pushes, single.inner);
+  // The grid has 512 triangles: the tree has inner nodes, and every ray takes some.
+  ASSERT_GT(tree.nodes().size(), 1u);
+  EXPECT_GE(single.inner, rays);
+  // Packets: the rays' lanes in walks of up to the packet width (one octant: no lone lanes),
+  // fewer walks than rays; a packet visits the union of its rays' nodes, so no more in all.
+  const std::uint64_t width = static_cast<std::uint64_t>(k.packet_width);
+  EXPECT_EQ(lone.walks, 0u);
+  EXPECT_EQ(packets.lanes, rays);
+  EXPECT_GE(packets.walks * width, rays);
+  EXPECT_LT(packets.walks, rays);
+  EXPECT_LE(packets.test_lanes, packets.tests * width);
+  EXPECT_LE(packets.inner, single.inner);
+  EXPECT_LE(packets.leaves, single.leaves);
+  // Occlusion stops at the first hit: never more tests than the closest-hit walks made.
+  EXPECT_EQ(shadow.walks, rays);
+  EXPECT_LE(shadow.tests, single.tests);
+  EXPECT_GE(shadow.tests, rays);
+}
+
+// A tree of one leaf: no inner node, and each ray walks straight to it.
+TEST(WalkStats, OneLeafTreeHasNoInnerSteps) {
+  if (!kWalkStats) GTEST_SKIP() << "built without RTC_WALK_STATS (the stats preset counts)";
+  const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const std::vector<glm::uvec3> triangles = {{0, 1, 2}};
+  const KdTree tree = KdTree::build(positions, triangles, KdBuildOptions{});
+  ASSERT_EQ(tree.nodes().size(), 1u);
+  std::vector<RayQuery> rays(10);
+  for (int i = 0; i < 10; ++i) {
+    rays[i].org = glm::vec3(0.05f * static_cast<float>(i) + 0.01f, 0.1f, 1.0f);
+    rays[i].dir = glm::vec3(0.0f, 0.0f, -1.0f);
+    rays[i].t_min = 0.0f;
+    rays[i].t_max = 2.0f;
+  }
+  std::vector<RayHit> hits(rays.size());
+  reset_walk_stats();
+  trace_kernels().intersect(tree, rays.data(), hits.data(), rays.size(), false);
+  const WalkStats s = walk_stats(false, false);
+  reset_walk_stats();
+  EXPECT_EQ(s.walks, 10u);
+  EXPECT_EQ(s.inner, 0u);
+  EXPECT_EQ(s.pushes, 0u);
+  EXPECT_EQ(s.leaves, 10u);
+  EXPECT_EQ(s.empty_leaves, 0u);
+  EXPECT_EQ(s.tests, 10u);
+}
+
+}  // namespace
+}  // namespace rtc
