@@ -34,7 +34,8 @@ WalkStats& WalkStats::operator+=(const WalkStats& o) {
 std::string WalkStats::to_string() const {
   char buf[256];
   std::snprintf(buf, sizeof buf,
-                "walks %llu, lanes %.2f/walk, inner %.2f, leaves %.2f (+%.2f empty), pushes %.2f, tests %.2f x %.2f lanes",
+                "walks %llu, lanes %.2f/walk, inner %.2f, leaves %.2f (+%.2f empty), pushes %.2f, "
+                "tests %.2f x %.2f lanes",
                 static_cast<unsigned long long>(walks), per(lanes, walks), per(inner, walks), per(leaves, walks),
                 per(empty_leaves, walks), per(pushes, walks), per(tests, walks), per(test_lanes, tests));
   return buf;

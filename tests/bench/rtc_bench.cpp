@@ -173,9 +173,8 @@ void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const R
 
 // A walk tally (stats builds, RTC_WALK_STATS) as JSON: its totals, over all repetitions.
 nlohmann::json walk_json(const rtc::WalkStats& w) {
-  return {{"walks", w.walks},   {"lanes", w.lanes},   {"inner", w.inner},         {"leaves", w.leaves},
-          {"empty_leaves", w.empty_leaves},              {"pushes", w.pushes}, {"tests", w.tests},
-          {"test_lanes", w.test_lanes}};
+  return {{"walks", w.walks},   {"lanes", w.lanes},         {"inner", w.inner}, {"leaves", w.leaves},
+          {"pushes", w.pushes}, {"empty_leaves", w.empty_leaves}, {"tests", w.tests}, {"test_lanes", w.test_lanes}};
 }
 
 std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {
@@ -446,9 +445,10 @@ int run(int argc, char** argv) {
         out["walks_packet_lone_lanes"] = walk_json(lone_walks);
         out["walks_single"] = walk_json(single_walks);
         if (!json) {
-          std::printf("  %-7s walks of %d-wide packets: %s\n          lone lanes of those: %s\n          single rays: %s\n",
-                      mode.c_str(), kernels.packet_width, packet_walks.to_string().c_str(),
-                      lone_walks.to_string().c_str(), single_walks.to_string().c_str());
+          std::printf("  %-7s walks of %d-wide packets: %s\n", mode.c_str(), kernels.packet_width,
+                      packet_walks.to_string().c_str());
+          std::printf("          lone lanes of those: %s\n          single rays: %s\n", lone_walks.to_string().c_str(),
+                      single_walks.to_string().c_str());
         }
       }
       const double rays = static_cast<double>(s.real);
