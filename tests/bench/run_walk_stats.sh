@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # What the kd-tree walks do on every view of the shared scene pack: per walk of a packet and of a
 # single ray, inner-node steps, leaves entered, triangle tests and the lanes live in them, for
-# primary and shadow rays, one thread, the best ISA. Builds the stats preset (RTC_WALK_STATS:
+# primary rays and for shadow rays walked from either end, one thread, the best ISA. Builds the stats preset (RTC_WALK_STATS:
 # counting walks, so its timings are not the tracer's) into build/stats if it is not there.
 # Usage: tests/bench/run_walk_stats.sh [SCENES_DIR] [NAME]
 # Writes tests/bench/results/NAME.jsonl and NAME.md (default NAME: walk_stats).
@@ -21,7 +21,9 @@ jsonl=$out/$name.jsonl
 : > "$jsonl.tmp"
 for view in $(find "$scenes" -name 'view*.json' | sort); do
   echo "rtc-bench (stats build) $view" >&2
-  "$bench" "$view" --threads 1 --reps 1 --mode primary --mode shadow --json >> "$jsonl.tmp"
+  # Shadow rays from either end, each order fixed: auto picks by timings, so its counts vary.
+  "$bench" "$view" --threads 1 --reps 1 --mode primary --mode shadow --shadow-order near --json >> "$jsonl.tmp"
+  "$bench" "$view" --threads 1 --reps 1 --build-reps 1 --mode shadow --shadow-order far --json >> "$jsonl.tmp"
 done
 mv "$jsonl.tmp" "$jsonl"
 python3 tests/bench/summarize_walk_stats.py "$jsonl" > "$out/$name.md"
