@@ -5,8 +5,10 @@
 // scenes). Not compiled per ISA.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #ifndef RTC_WALK_STATS
 #define RTC_WALK_STATS 0
@@ -34,6 +36,19 @@ struct WalkStats {
   /// Per walk: "walks W, lanes L/walk, inner I, leaves F (+E empty), pushes P, tests T x N lanes".
   [[nodiscard]] std::string to_string() const;
 };
+
+/// Every counter of WalkStats with its name (the JSON keys rtc-bench writes): the one list that
+/// summing, the totals and the JSON go through.
+inline constexpr std::array<std::pair<const char*, std::uint64_t WalkStats::*>, 8> kWalkStatsFields = {{
+    {"walks", &WalkStats::walks},
+    {"lanes", &WalkStats::lanes},
+    {"inner", &WalkStats::inner},
+    {"leaves", &WalkStats::leaves},
+    {"empty_leaves", &WalkStats::empty_leaves},
+    {"pushes", &WalkStats::pushes},
+    {"tests", &WalkStats::tests},
+    {"test_lanes", &WalkStats::test_lanes},
+}};
 
 /// The totals kept: walks of one ray (`packet` false) or of packets, closest hit or occlusion.
 [[nodiscard]] WalkStats walk_stats(bool packet, bool occlusion);

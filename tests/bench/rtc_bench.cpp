@@ -173,8 +173,9 @@ void trace_stream(const rtc::TraceKernels& k, const rtc::FrameState& fs, const R
 
 // A walk tally (stats builds, RTC_WALK_STATS) as JSON: its totals, over all repetitions.
 nlohmann::json walk_json(const rtc::WalkStats& w) {
-  return {{"walks", w.walks},   {"lanes", w.lanes},         {"inner", w.inner}, {"leaves", w.leaves},
-          {"pushes", w.pushes}, {"empty_leaves", w.empty_leaves}, {"tests", w.tests}, {"test_lanes", w.test_lanes}};
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& [name, field] : rtc::kWalkStatsFields) out[name] = w.*field;
+  return out;
 }
 
 std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {

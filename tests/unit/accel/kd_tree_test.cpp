@@ -274,7 +274,7 @@ TEST(KdTree, InnerNodesMarkExactlyTheirEmptyChildren) {
         if (n.is_leaf()) continue;
         for (std::uint32_t c = 0; c < 2; ++c) {
           const KdNode& child = tree.nodes()[n.left() + c];
-          const bool empty = child.is_leaf() && child.count == 0;
+          const bool empty = child.is_empty_leaf();
           ASSERT_EQ(n.child_empty(c), empty) << "node " << i << ", child " << c;
           marked += empty ? 1 : 0;
           unmarked_leaves += child.is_leaf() && !empty ? 1 : 0;
