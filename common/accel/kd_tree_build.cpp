@@ -1671,9 +1671,14 @@ class BlockBuilder {
     }
     out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
 
+    const float p = split.pos;
+    const int full_side = one_sided(s_.arena.at(off[split.axis]), len[split.axis], p, split.planar_left);
+    if (full_side >= 0) {
+      cut_off_empty(index, full_side, off, len, count, box, split.axis, p, depth);
+      return;
+    }
     // Classify every reference by its events on the split axis. A start precedes its own end
     // (start < end for a non-planar reference), so the start sets "both" or "right" first.
-    const float p = split.pos;
     std::uint32_t* side = s_.side.data();
     const bool vector = ctx_.avx512;
     if (vector) {
@@ -1848,6 +1853,43 @@ class BlockBuilder {
     for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].before;
     s_.restore.resize(restore);
     s_.arena.release(mark);
+  }
+
+  // The side every reference of the node lies on for the plane `axis` = `p` (`ev`: that axis's
+  // sorted events), as the classification below would put it: 0 left, 1 right, -1 neither (some
+  // on each side or on both). A reference goes right when it has an event above p (a start at
+  // p has its end above) or lies in p without planar_left, left when it has one below p (an
+  // end at p has its start below) or lies in p with planar_left.
+  static int one_sided(const Event* ev, std::size_t n, float p, bool planar_left) {
+    if (n == 0) return -1;
+    const auto planar_at_p = [&](std::size_t i, std::ptrdiff_t step) {
+      for (; i < n && ev[i].pos == p; i += static_cast<std::size_t>(step)) {  // i wraps past 0 to >= n
+        if (ev[i].type() == kPlanar) return true;
+      }
+      return false;
+    };
+    if (ev[0].pos > p || (ev[0].pos == p && !(planar_left && planar_at_p(0, 1)))) return 1;
+    if (ev[n - 1].pos < p || (ev[n - 1].pos == p && !(!planar_left && planar_at_p(n - 1, -1)))) return 0;
+    return -1;
+  }
+
+  // A split that cuts off empty space: the full child holds every reference with the bounds it
+  // has here, so it takes the node's event lists as they are, with no classification, split or
+  // merge. (On the large shared scenes 14-43% of the events the sweep's nodes handled were in
+  // such nodes.) The empty child is a leaf.
+  void cut_off_empty(std::size_t index, int full_side, const std::size_t off[3], const std::size_t len[3],
+                     std::size_t count, const Aabb& box, int axis, float p, int depth) {
+    const std::size_t first = out_.nodes.size();
+    out_.nodes.resize(first + 2);
+    out_.nodes[index] = KdNode::inner(first, axis, p);
+    Aabb child[2] = {box, box};
+    child[0].hi[axis] = p;
+    child[1].lo[axis] = p;
+    const std::size_t none[3] = {0, 0, 0};
+    for (int c = 0; c < 2; ++c) {
+      const bool full = c == full_side;
+      node(first + static_cast<std::size_t>(c), off, full ? len : none, full ? count : 0, child[c], depth + 1);
+    }
   }
 
   void leaf(std::size_t index, std::size_t off, std::size_t len, std::size_t count, float area) {

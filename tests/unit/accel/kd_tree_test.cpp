@@ -124,6 +124,35 @@ Soup sphere_and_grid(int seg) {
   return s;
 }
 
+// Closed axis-aligned boxes apart from each other, 12 triangles each (`copies` times), every
+// one lying in a plane of its box: the sweep cuts the empty space around a box at its faces,
+// where those triangles lie, and with enough copies cuts a face's triangles off in a flat
+// child on either side. So a cut's plane holds planar references, and the side they go to
+// decides whether every reference is on one side (BlockBuilder's empty cuts).
+Soup separate_boxes(std::uint32_t seed, int count, int copies) {
+  SCOPED_TRACE("separate_boxes seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> size(0.02f, 0.2f);
+  Soup s;
+  const int side = static_cast<int>(std::ceil(std::cbrt(static_cast<double>(count))));
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 lo(static_cast<float>(i % side), static_cast<float>(i / side % side),
+                       static_cast<float>(i / (side * side)));
+    const glm::vec3 hi = lo + glm::vec3(size(rng), size(rng), size(rng));
+    const auto b = static_cast<unsigned>(s.positions.size());
+    for (int k = 0; k < 8; ++k) s.positions.emplace_back(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
+    // Two triangles per face: x = lo, x = hi, y = lo, y = hi, z = lo, z = hi.
+    for (const glm::uvec4& f : {glm::uvec4(0, 2, 4, 6), glm::uvec4(1, 3, 5, 7), glm::uvec4(0, 1, 4, 5),
+                                glm::uvec4(2, 3, 6, 7), glm::uvec4(0, 1, 2, 3), glm::uvec4(4, 5, 6, 7)}) {
+      for (int c = 0; c < copies; ++c) {
+        s.triangles.emplace_back(b + f.x, b + f.y, b + f.z);
+        s.triangles.emplace_back(b + f.y, b + f.w, b + f.z);
+      }
+    }
+  }
+  return s;
+}
+
 std::vector<std::uint32_t> refs_of(const KdTree& tree) { return {tree.prim_refs().begin(), tree.prim_refs().end()}; }
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
@@ -189,7 +218,8 @@ bool reachable(const KdTree& tree, const Soup& s, std::uint32_t index, const Aab
 TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
   // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
   for (const Soup& s :
-       {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000)}) {
+       {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000),
+        separate_boxes(47, 400, 1)}) {
     // The bit-mask stage from 256 references (four words), 130 (three), 64 (one), 17, and not
     // at all.
     for (const auto& [clip, mask_below] :
@@ -364,7 +394,8 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
         std::pair{sliver_fan(13, 3000), 3.0f}, std::pair{planar_piles(17, 3000), 3.0f},
         std::pair{random_soup(19, 64, 0.5f), 3.0f}, std::pair{random_soup(23, 128, 0.5f), 3.0f},
         std::pair{random_soup(31, 256, 0.5f), 3.0f}, std::pair{random_soup(37, 150, 0.5f), 3.0f},
-        std::pair{random_soup(29, 300, 0.5f), 1.0f}, std::pair{signed_zero_cells(), 0.1f}}) {
+        std::pair{random_soup(29, 300, 0.5f), 1.0f}, std::pair{signed_zero_cells(), 0.1f},
+        std::pair{separate_boxes(47, 400, 1), 3.0f}, std::pair{separate_boxes(53, 200, 6), 3.0f}, std::pair{walled_gap(), 3.0f}}) {
     for (int mask_below : {-1, 256, 192, 150, 128, 100, 64, 33, 8}) {  // -1: 256 without clipping
       KdBuildOptions sweep;
       sweep.clip = false;
