@@ -388,14 +388,17 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   // Without clipping the bit masks are the event sweep by other means: the same planes, counts,
   // costs and ties, so node for node the same tree.
   // Soup 19 has 64 triangles, so its root is one full 64-bit mask; soups 23 and 31 have 128 and
-  // 256, two and four full words; soup 37 has 150, three words, the last partly used.
+  // 256, two and four full words; soup 37 has 150, three words, the last partly used. In
+  // walled_gap a node of the 30 coincident wall triangles alone splits at their plane with them
+  // on the left: an empty cut only by the rule for planar references (BlockBuilder::one_sided).
   for (const auto& [s, traversal_cost] :
        {std::pair{random_soup(7, 5000, 0.05f), 3.0f}, std::pair{sphere_and_grid(24), 3.0f},
         std::pair{sliver_fan(13, 3000), 3.0f}, std::pair{planar_piles(17, 3000), 3.0f},
         std::pair{random_soup(19, 64, 0.5f), 3.0f}, std::pair{random_soup(23, 128, 0.5f), 3.0f},
         std::pair{random_soup(31, 256, 0.5f), 3.0f}, std::pair{random_soup(37, 150, 0.5f), 3.0f},
         std::pair{random_soup(29, 300, 0.5f), 1.0f}, std::pair{signed_zero_cells(), 0.1f},
-        std::pair{separate_boxes(47, 400, 1), 3.0f}, std::pair{separate_boxes(53, 200, 6), 3.0f}, std::pair{walled_gap(), 3.0f}}) {
+        std::pair{separate_boxes(47, 400, 1), 3.0f}, std::pair{separate_boxes(53, 200, 6), 3.0f},
+        std::pair{walled_gap(), 3.0f}}) {
     for (int mask_below : {-1, 256, 192, 150, 128, 100, 64, 33, 8}) {  // -1: 256 without clipping
       KdBuildOptions sweep;
       sweep.clip = false;
