@@ -153,6 +153,35 @@ Soup separate_boxes(std::uint32_t seed, int count, int copies) {
   return s;
 }
 
+// Ten small triangles in x < -0.8, 40 copies of one large triangle in the plane x = 0.3 and a
+// thousand small ones in x > 0.5, all within y, z in [-1, 1]. The root cuts at x = 0.5, and its
+// left child then at x = 0.3 with the copies going right, into the thin slab up to 0.5: the
+// plane holds the node's last events, planar ones, and the left side still has references.
+Soup pile_below_cut(std::uint32_t seed) {
+  Soup s;
+  const auto add_cluster = [&](std::uint32_t cluster_seed, int count, float x_lo, float x_hi) {
+    std::mt19937 rng(cluster_seed);
+    std::uniform_real_distribution<float> x(x_lo, x_hi), yz(-0.99f, 0.99f), off(-0.01f, 0.01f);
+    for (int i = 0; i < count; ++i) {
+      const glm::vec3 c(x(rng), yz(rng), yz(rng));
+      const auto b = static_cast<unsigned>(s.positions.size());
+      for (int k = 0; k < 3; ++k) {
+        s.positions.push_back(glm::clamp(c + glm::vec3(off(rng), off(rng), off(rng)), glm::vec3(x_lo, -1.0f, -1.0f),
+                                         glm::vec3(x_hi, 1.0f, 1.0f)));
+      }
+      s.triangles.emplace_back(b, b + 1, b + 2);
+    }
+  };
+  add_cluster(seed, 10, -1.0f, -0.8f);
+  add_cluster(seed + 1, 1000, 0.5f, 1.0f);
+  const auto wall = static_cast<unsigned>(s.positions.size());
+  s.positions.emplace_back(0.3f, -1.0f, -1.0f);
+  s.positions.emplace_back(0.3f, 1.0f, -1.0f);
+  s.positions.emplace_back(0.3f, 0.0f, 1.0f);
+  for (int i = 0; i < 40; ++i) s.triangles.emplace_back(wall, wall + 1, wall + 2);
+  return s;
+}
+
 std::vector<std::uint32_t> refs_of(const KdTree& tree) { return {tree.prim_refs().begin(), tree.prim_refs().end()}; }
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
@@ -216,10 +245,11 @@ bool reachable(const KdTree& tree, const Soup& s, std::uint32_t index, const Aab
 }
 
 TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
-  // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips.
+  // Seeds 7 and 11 (random soups), then a sphere on a grid, then slivers the build clips, then
+  // boxes and a pile of planar triangles whose planes the sweep cuts at (empty cuts and not).
   for (const Soup& s :
        {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000),
-        separate_boxes(47, 400, 1)}) {
+        separate_boxes(47, 400, 1), pile_below_cut(61)}) {
     // The bit-mask stage from 256 references (four words), 130 (three), 64 (one), 17, and not
     // at all.
     for (const auto& [clip, mask_below] :
@@ -391,6 +421,8 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   // 256, two and four full words; soup 37 has 150, three words, the last partly used. In
   // walled_gap a node of the 30 coincident wall triangles alone splits at their plane with them
   // on the left: an empty cut only by the rule for planar references (BlockBuilder::one_sided).
+  // In pile_below_cut the planar references at the plane go right, the rest lie below it: not
+  // an empty cut, by the same rule from the other end.
   for (const auto& [s, traversal_cost] :
        {std::pair{random_soup(7, 5000, 0.05f), 3.0f}, std::pair{sphere_and_grid(24), 3.0f},
         std::pair{sliver_fan(13, 3000), 3.0f}, std::pair{planar_piles(17, 3000), 3.0f},
@@ -398,7 +430,7 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
         std::pair{random_soup(31, 256, 0.5f), 3.0f}, std::pair{random_soup(37, 150, 0.5f), 3.0f},
         std::pair{random_soup(29, 300, 0.5f), 1.0f}, std::pair{signed_zero_cells(), 0.1f},
         std::pair{separate_boxes(47, 400, 1), 3.0f}, std::pair{separate_boxes(53, 200, 6), 3.0f},
-        std::pair{walled_gap(), 3.0f}}) {
+        std::pair{walled_gap(), 3.0f}, std::pair{pile_below_cut(61), 3.0f}}) {
     for (int mask_below : {-1, 256, 192, 150, 128, 100, 64, 33, 8}) {  // -1: 256 without clipping
       KdBuildOptions sweep;
       sweep.clip = false;
