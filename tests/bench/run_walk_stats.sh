@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # What the kd-tree walks do on every view of the shared scene pack: per walk of a packet and of a
 # single ray, inner-node steps, leaves entered, triangle tests and the lanes live in them, for
-# primary rays and for shadow rays walked from either end, one thread, the best ISA. Builds the stats preset (RTC_WALK_STATS:
-# counting walks, so its timings are not the tracer's) into build/stats if it is not there.
+# primary rays and for shadow rays walked from either end, one thread, the best ISA. Builds the
+# stats preset (RTC_WALK_STATS: counting walks, so its timings are not the tracer's) into
+# build/stats if it is not there.
 # Usage: tests/bench/run_walk_stats.sh [SCENES_DIR] [NAME]
 # Writes tests/bench/results/NAME.jsonl and NAME.md (default NAME: walk_stats).
 set -euo pipefail

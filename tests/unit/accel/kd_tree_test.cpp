@@ -44,6 +44,15 @@ Soup random_soup(std::uint32_t seed, int count, float size) {
   return s;
 }
 
+// `copies` copies of one large triangle in the plane x = `x`, across y and z in [-1, 1].
+void add_wall(Soup& s, float x, int copies) {
+  const auto wall = static_cast<unsigned>(s.positions.size());
+  s.positions.emplace_back(x, -1.0f, -1.0f);
+  s.positions.emplace_back(x, 1.0f, -1.0f);
+  s.positions.emplace_back(x, 0.0f, 1.0f);
+  for (int i = 0; i < copies; ++i) s.triangles.emplace_back(wall, wall + 1, wall + 2);
+}
+
 // Two clusters of small random triangles, 35000 in x < -0.3 and 35000 in x > 0.3, and 30
 // copies of one large triangle in the plane x = 0 between them. The binned root's best x plane
 // is the copies' (they go to either side), and TopBuilder::refine's window around it holds only
@@ -57,11 +66,7 @@ Soup walled_gap() {
     for (const glm::vec3& p : half.positions) s.positions.emplace_back(side * (0.65f + 0.35f * std::abs(p.x)), p.y, p.z);
     for (const glm::uvec3& t : half.triangles) s.triangles.emplace_back(t + glm::uvec3(base));
   }
-  const auto wall = static_cast<unsigned>(s.positions.size());
-  s.positions.emplace_back(0.0f, -1.0f, -1.0f);
-  s.positions.emplace_back(0.0f, 1.0f, -1.0f);
-  s.positions.emplace_back(0.0f, 0.0f, 1.0f);
-  for (int i = 0; i < 30; ++i) s.triangles.emplace_back(wall, wall + 1, wall + 2);
+  add_wall(s, 0.0f, 30);
   return s;
 }
 
@@ -174,11 +179,7 @@ Soup pile_below_cut(std::uint32_t seed) {
   };
   add_cluster(seed, 10, -1.0f, -0.8f);
   add_cluster(seed + 1, 1000, 0.5f, 1.0f);
-  const auto wall = static_cast<unsigned>(s.positions.size());
-  s.positions.emplace_back(0.3f, -1.0f, -1.0f);
-  s.positions.emplace_back(0.3f, 1.0f, -1.0f);
-  s.positions.emplace_back(0.3f, 0.0f, 1.0f);
-  for (int i = 0; i < 40; ++i) s.triangles.emplace_back(wall, wall + 1, wall + 2);
+  add_wall(s, 0.3f, 40);
   return s;
 }
 
