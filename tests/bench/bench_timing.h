@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <ctime>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -54,6 +55,49 @@ double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
 template <typename Fn>
 double time_median_ms(int reps, Fn&& fn) {
   return time_median_ms(reps, std::forward<Fn>(fn), [] {});
+}
+
+/// One contender of a round-robin timing: `fn` is timed, `untimed` runs before each call outside
+/// the timing (as for time_stats_ms); `rounds` limits the rounds it takes part in (0: all).
+struct Contender {
+  std::function<void()> fn;
+  std::function<void()> untimed = [] {};
+  int rounds = 0;
+};
+
+/// Times the contenders in turn, one call each per round, for `rounds` rounds, so that a slow
+/// spell of a shared machine (seconds long on the VMs this runs on) falls on all of them alike
+/// instead of on whichever was timed during it. Returns each contender's times in ms by round.
+inline std::vector<std::vector<double>> time_rounds_ms(int rounds, const std::vector<Contender>& contenders) {
+  std::vector<std::vector<double>> ms(contenders.size());
+  for (int r = 0; r < rounds; ++r) {
+    for (std::size_t c = 0; c < contenders.size(); ++c) {
+      if (contenders[c].rounds > 0 && r >= contenders[c].rounds) continue;
+      contenders[c].untimed();
+      Timer t;
+      const double c0 = cpu_ms();
+      contenders[c].fn();
+      ms[c].push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
+    }
+  }
+  return ms;
+}
+
+/// The median of `v` (the upper one of an even count, as time_stats_ms); 0 for none.
+inline double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+/// The median over the rounds both took part in of a[r] / b[r]: a ratio of two contenders
+/// timed in the same round, which a slow spell changes far less than it changes either time.
+inline double paired_ratio(const std::vector<double>& a, const std::vector<double>& b) {
+  std::vector<double> r;
+  for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    if (b[i] > 0.0) r.push_back(a[i] / b[i]);
+  }
+  return median_of(std::move(r));
 }
 
 }  // namespace rtc::bench

@@ -138,8 +138,6 @@ void embree_occluded(void* context, const RayQuery* rays, std::uint8_t* out, std
 }
 
 using rtc::bench::time_median_ms;
-using rtc::bench::time_stats_ms;
-using rtc::bench::TimeStats;
 
 template <typename Fn>
 void for_chunks(const RayStream& s, Fn&& fn) {
@@ -347,28 +345,40 @@ int run(int argc, char** argv) {
 
   kd_options.clip = rtc::kd_clip_for(scene, rtc::parse_kd_clip(kd_clip_text));
   // Build time: median over the reps (--build-reps when given), like every other figure. The
-  // previous rep's state is freed before the clock starts, on both sides.
+  // previous rep's state is freed before the clock starts, on both sides. With --compare-embree
+  // rtc's build and Embree's two take turns round by round (time_rounds_ms), so that a slow
+  // spell of the machine falls on all three alike; Embree's high-quality build takes part in the
+  // first 3 rounds only (seconds each on the largest scenes).
   std::shared_ptr<rtc::FrameState> fs;
-  const TimeStats build_time = time_stats_ms(
-      build_reps > 0 ? build_reps : reps,
-      [&] { fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options); },
-      [&] { fs.reset(); });
-  const double build_ms = build_time.median_ms;
+  std::unique_ptr<EmbreeScene> embree, embree_hq;
+  std::vector<rtc::bench::Contender> builders;
+  builders.push_back({[&] { fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options); },
+                      [&] {
+                        embree.reset();
+                        embree_hq.reset();
+                        fs.reset();
+                      }});
+  if (compare) {
+    builders.push_back({[&] { embree = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles); },
+                        [&] { embree.reset(); }});
+    builders.push_back(
+        {[&] {
+           embree_hq = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles, false, true);
+         },
+         [&] { embree_hq.reset(); }, 3});
+  }
+  const std::vector<std::vector<double>> build_rounds =
+      rtc::bench::time_rounds_ms(build_reps > 0 ? build_reps : reps, builders);
+  embree_hq.reset();
+  const double build_ms = rtc::bench::median_of(build_rounds[0]);
+  const double build_min_ms = *std::min_element(build_rounds[0].begin(), build_rounds[0].end());
   const rtc::KdBuildStats& kd = fs->geometry->single_tree().stats();
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
-
-  std::unique_ptr<EmbreeScene> embree;
-  double embree_build_ms = 0.0, embree_build_hq_ms = 0.0;
+  double embree_build_ms = 0.0, embree_build_hq_ms = 0.0, build_vs_embree_hq = 0.0;
   if (compare) {
-    embree_build_ms = time_median_ms(
-        reps, [&] { embree = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles); },
-        [&] { embree.reset(); });
-    std::unique_ptr<EmbreeScene> hq;
-    embree_build_hq_ms = time_median_ms(
-        std::min(reps, 3),
-        [&] { hq = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles, false, true); },
-        [&] { hq.reset(); });
-    hq.reset();
+    embree_build_ms = rtc::bench::median_of(build_rounds[1]);
+    embree_build_hq_ms = rtc::bench::median_of(build_rounds[2]);
+    build_vs_embree_hq = rtc::bench::paired_ratio(build_rounds[0], build_rounds[2]);
   }
 
   nlohmann::json base = {{"scene", name},
@@ -381,7 +391,7 @@ int run(int argc, char** argv) {
                          {"triangles", kd.triangles},
                          {"load_ms", load_ms},
                          {"build_ms", build_ms},
-                         {"build_min_ms", build_time.min_ms},
+                         {"build_min_ms", build_min_ms},
                          {"kd_nodes", kd.nodes},
                          {"kd_leaves", kd.leaves},
                          {"kd_max_depth", kd.max_depth},
@@ -397,6 +407,8 @@ int run(int argc, char** argv) {
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;
     base["embree_build_hq_ms"] = embree_build_hq_ms;
+    // rtc's build time over Embree's high-quality one, paired within each round.
+    base["build_vs_embree_hq_paired"] = build_vs_embree_hq;
   }
   if (!json) {
     std::printf("%s: %llu triangles, %dx%d, %d threads, isa %s, intersector %s; load %.0f ms\n", name.c_str(),
@@ -404,8 +416,9 @@ int run(int argc, char** argv) {
                 std::string(rtc::isa_name(isa)).c_str(), rtc::intersector_name(scene.settings.intersector), load_ms);
     std::printf("  build: rtc kd-tree %.1f ms (%s)\n", build_ms, kd.to_string().c_str());
     if (compare) {
-      std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality)\n", embree_build_ms,
-                  embree_build_hq_ms);
+      std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality); rtc / high quality %.2fx "
+                  "(paired by round)\n",
+                  embree_build_ms, embree_build_hq_ms, build_vs_embree_hq);
     }
   }
 
@@ -424,24 +437,96 @@ int run(int argc, char** argv) {
       const bool shadow = mode == "shadow";
       const RayStream shadows = shadow ? shadow_stream(*fs, primary, hits) : RayStream{};
       const RayStream& s = shadow ? shadows : primary;
-      std::vector<std::uint8_t> occ;
-      std::vector<RayHit> scratch;
+      std::vector<std::uint8_t> occ, occ_single;
+      std::vector<RayHit> scratch, scratch_single;
       // One tally of the shadow walk orders' times per kernel, kept over the repetitions as a
       // renderer keeps one over its frames.
       rtc::ShadowOrderTally tally_packets, tally_single;
       auto ours = [&](bool packets, bool refine) {
-        trace_stream(kernels, *fs, s, shadow, packets, scratch, occ, refine, shadow_order,
-                     packets ? &tally_packets : &tally_single);
+        trace_stream(kernels, *fs, s, shadow, packets, packets ? scratch : scratch_single, packets ? occ : occ_single,
+                     refine, shadow_order, packets ? &tally_packets : &tally_single);
       };
-      rtc::reset_walk_stats();
-      const double ms_packet = time_median_ms(reps, [&] { ours(true, false); });
-      // A packet pass walks packets and, for octant groups of one lane, single rays.
-      const rtc::WalkStats packet_walks = rtc::walk_stats(true, shadow);
-      const rtc::WalkStats lone_walks = rtc::walk_stats(false, shadow);
-      rtc::reset_walk_stats();
-      const double ms_single = time_median_ms(reps, [&] { ours(false, false); });
-      const rtc::WalkStats single_walks = rtc::walk_stats(false, shadow);
+      // The other ISAs, each with its own packet shape (the same rays, blocked 2x2 / 4x2 / 4x4).
+      struct OtherIsa {
+        rtc::Isa isa;
+        const rtc::TraceKernels* kernels;
+        RayStream stream;
+        std::vector<RayHit> hits;
+        std::vector<std::uint8_t> occ;
+        rtc::ShadowOrderTally tally;
+      };
+      std::vector<std::unique_ptr<OtherIsa>> others;
+      for (const rtc::Isa other : isas) {
+        if (other == isa) continue;
+        auto o = std::make_unique<OtherIsa>();
+        o->isa = other;
+        o->kernels = &rtc::trace_kernels(other);
+        const RayStream p2 = primary_stream(*fs, o->kernels->packet_width);
+        trace_stream(*o->kernels, *fs, p2, false, true, o->hits, o->occ, true);
+        o->stream = shadow ? shadow_stream(*fs, p2, o->hits) : p2;
+        others.push_back(std::move(o));
+      }
+      // Embree's modes on the same rays: primary rays blocked for each packet width, shadow rays
+      // as they are (packets are consecutive rays of one light).
+      struct EmbreeRun {
+        EmbreeMode mode;
+        RayStream stream;
+        std::vector<RayHit> hits;
+        std::vector<std::uint8_t> occ;
+      };
+      std::vector<EmbreeRun> embree_runs;
+      if (compare) {
+        for (EmbreeMode em : kEmbreeModes) {
+          if (!embree->supports(em)) continue;
+          EmbreeRun e{em, shadow ? shadows : primary_stream(*fs, static_cast<int>(em)), {}, {}};
+          e.stream.width = static_cast<int>(em);
+          e.hits.resize(e.stream.rays.size());
+          e.occ.resize(e.stream.rays.size());
+          embree_runs.push_back(std::move(e));
+        }
+      }
+
+      // Every contender takes one turn per round (time_rounds_ms): rtc's packets, its single
+      // rays, its primary hits with refined distances, its other ISAs, Embree's modes.
+      std::vector<rtc::bench::Contender> contenders;
+      contenders.push_back({[&] { ours(true, false); }});
+      contenders.push_back({[&] { ours(false, false); }});
+      const std::size_t first_other = shadow ? 2 : 3;
+      if (!shadow) contenders.push_back({[&] { ours(true, true); }});
+      for (const auto& o : others) {
+        OtherIsa* x = o.get();
+        contenders.push_back({[&, x] {
+          trace_stream(*x->kernels, *fs, x->stream, shadow, true, x->hits, x->occ, false, shadow_order, &x->tally);
+        }});
+      }
+      const std::size_t first_embree = contenders.size();
+      for (EmbreeRun& e : embree_runs) {
+        EmbreeRun* x = &e;
+        contenders.push_back({[&, x] {
+          tbb::parallel_for(std::size_t{0}, x->stream.chunk_begin.size() - 1, [&](std::size_t c) {
+            const std::size_t first = x->stream.chunk_begin[c], n = x->stream.chunk_begin[c + 1] - first;
+            if (shadow) {
+              embree->occluded(x->stream.rays.data() + first, x->occ.data() + first, n, x->mode);
+            } else {
+              embree->intersect(x->stream.rays.data() + first, x->hits.data() + first, n, x->mode);
+            }
+          });
+        }});
+      }
+      const std::vector<std::vector<double>> times = rtc::bench::time_rounds_ms(reps, contenders);
+      const double ms_packet = rtc::bench::median_of(times[0]);
+      const double ms_single = rtc::bench::median_of(times[1]);
+
       if constexpr (rtc::kWalkStats) {
+        // Stats builds: the walks' counts over `reps` passes of each kernel, outside the timing.
+        rtc::reset_walk_stats();
+        for (int r = 0; r < reps; ++r) ours(true, false);
+        // A packet pass walks packets and, for octant groups of one lane, single rays.
+        const rtc::WalkStats packet_walks = rtc::walk_stats(true, shadow);
+        const rtc::WalkStats lone_walks = rtc::walk_stats(false, shadow);
+        rtc::reset_walk_stats();
+        for (int r = 0; r < reps; ++r) ours(false, false);
+        const rtc::WalkStats single_walks = rtc::walk_stats(false, shadow);
         out["walks_packets"] = walk_json(packet_walks);
         out["walks_packet_lone_lanes"] = walk_json(lone_walks);
         out["walks_single"] = walk_json(single_walks);
@@ -465,73 +550,50 @@ int run(int argc, char** argv) {
       if (!shadow) {
         // Primary hits with their distances refined too, as rtc's stream API reports them (the
         // headline figure up to 2026-11-22).
-        const double ms_refined = time_median_ms(reps, [&] { ours(true, true); });
+        const double ms_refined = rtc::bench::median_of(times[2]);
         out["mrays_per_s_refined"] = rays / ms_refined / 1e3;
         if (!json) {
           std::printf("          with distances refined in double: %.2f M rays/s (%.1f ms)\n", rays / ms_refined / 1e3,
                       ms_refined);
         }
       }
-      // The other ISAs, each with its own packet shape (the same rays, blocked 2x2 / 4x2 / 4x4).
       nlohmann::json per_isa = nlohmann::json::object();
       per_isa[std::string(rtc::isa_name(isa))] = {{"packet_width", kernels.packet_width}, {"mrays_per_s", rays / ms_packet / 1e3}};
-      for (const rtc::Isa other : isas) {
-        if (other == isa) continue;
-        const rtc::TraceKernels& k = rtc::trace_kernels(other);
-        const RayStream p2 = primary_stream(*fs, k.packet_width);
-        std::vector<RayHit> h2;
-        std::vector<std::uint8_t> occ2;
-        trace_stream(k, *fs, p2, false, true, h2, occ2, true);
-        const RayStream s2 = shadow ? shadow_stream(*fs, p2, h2) : p2;
-        rtc::ShadowOrderTally tally2;
-        const double ms2 = time_median_ms(
-            reps, [&] { trace_stream(k, *fs, s2, shadow, true, h2, occ2, false, shadow_order, &tally2); });
-        const double m2 = static_cast<double>(s2.real) / ms2 / 1e3;
-        per_isa[std::string(rtc::isa_name(other))] = {{"packet_width", k.packet_width}, {"mrays_per_s", m2}};
+      for (std::size_t i = 0; i < others.size(); ++i) {
+        const OtherIsa& o = *others[i];
+        const double ms2 = rtc::bench::median_of(times[first_other + i]);
+        const double m2 = static_cast<double>(o.stream.real) / ms2 / 1e3;
+        per_isa[std::string(rtc::isa_name(o.isa))] = {{"packet_width", o.kernels->packet_width}, {"mrays_per_s", m2}};
         if (!json) {
-          std::printf("          rtc %s %d-wide packets: %8.2f M rays/s (%.1f ms)\n", std::string(rtc::isa_name(other)).c_str(),
-                      k.packet_width, m2, ms2);
+          std::printf("          rtc %s %d-wide packets: %8.2f M rays/s (%.1f ms)\n",
+                      std::string(rtc::isa_name(o.isa)).c_str(), o.kernels->packet_width, m2, ms2);
         }
       }
       out["isas"] = per_isa;
       if (compare) {
         nlohmann::json emb = nlohmann::json::object();
         double best = 0.0;
-        std::vector<std::uint8_t> our_occ = occ;
-        for (EmbreeMode em : kEmbreeModes) {
-          if (!embree->supports(em)) continue;
-          const int w = static_cast<int>(em);
-          RayStream es = shadow ? RayStream{} : primary_stream(*fs, w);
-          if (shadow) {
-            // Embree gets the same shadow rays; packets are consecutive rays of one light.
-            es = shadows;
-            es.width = w;
-          }
-          std::vector<RayHit> eh(es.rays.size());
-          std::vector<std::uint8_t> eocc(es.rays.size());
-          const double ms = time_median_ms(reps, [&] {
-            tbb::parallel_for(std::size_t{0}, es.chunk_begin.size() - 1, [&](std::size_t c) {
-              const std::size_t first = es.chunk_begin[c], n = es.chunk_begin[c + 1] - first;
-              if (shadow) {
-                embree->occluded(es.rays.data() + first, eocc.data() + first, n, em);
-              } else {
-                embree->intersect(es.rays.data() + first, eh.data() + first, n, em);
-              }
-            });
-          });
+        std::size_t best_index = first_embree;
+        for (std::size_t i = 0; i < embree_runs.size(); ++i) {
+          const EmbreeRun& e = embree_runs[i];
+          const RayStream& es = e.stream;
+          const double ms = rtc::bench::median_of(times[first_embree + i]);
           const double mrays = rays / ms / 1e3;
-          best = std::max(best, mrays);
+          if (mrays > best) {
+            best = mrays;
+            best_index = first_embree + i;
+          }
           nlohmann::json m = {{"mrays_per_s", mrays}, {"frame_ms", ms}};
           if (shadow) {
             std::uint64_t agree = 0, n_real = 0;
-            for (std::size_t i = 0; i < es.rays.size(); ++i) {
-              if (es.pixel[i] < 0) continue;
+            for (std::size_t k = 0; k < es.rays.size(); ++k) {
+              if (es.pixel[k] < 0) continue;
               ++n_real;
-              agree += (eocc[i] != 0) == (our_occ[i] != 0);
+              agree += (e.occ[k] != 0) == (occ[k] != 0);
             }
             m["occlusion_agreement"] = n_real ? static_cast<double>(agree) / static_cast<double>(n_real) : 1.0;
           } else {
-            const std::vector<RayHit> theirs = by_pixel(es, eh, pixels);
+            const std::vector<RayHit> theirs = by_pixel(es, e.hits, pixels);
             const std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
             const rtc::test::HitComparison c =
                 rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, our_pixels, theirs);
@@ -540,20 +602,29 @@ int run(int argc, char** argv) {
             m["max_rel_dt"] = c.max_rel_t_same_prim;
             m["ties"] = c.ties;
             m["unexplained"] = c.bad_ties + c.same_prim_t_bad;
-            if (!json && em == EmbreeMode::Single) std::printf("          agreement: %s\n", c.summary().c_str());
+            if (!json && e.mode == EmbreeMode::Single) std::printf("          agreement: %s\n", c.summary().c_str());
           }
-          emb[EmbreeScene::mode_name(em)] = m;
+          emb[EmbreeScene::mode_name(e.mode)] = m;
           if (!json) {
-            std::printf("          %-9s: %8.2f M rays/s (%.1f ms)%s\n", EmbreeScene::mode_name(em).c_str(), mrays, ms,
+            std::printf("          %-9s: %8.2f M rays/s (%.1f ms)%s\n", EmbreeScene::mode_name(e.mode).c_str(), mrays, ms,
                         shadow ? fmt::format(", occlusion agreement {:.4f}%",
                                              100.0 * m["occlusion_agreement"].get<double>()).c_str()
                                : "");
           }
         }
+        // Against Embree's fastest mode: the ratio of the medians, and the median of the ratios
+        // of the two times taken in the same round (steadier on a busy machine).
+        const double paired = rtc::bench::paired_ratio(times[best_index], times[0]);
+        const std::string best_mode = EmbreeScene::mode_name(embree_runs[best_index - first_embree].mode);
         out["embree"] = emb;
         out["embree_best_mrays_per_s"] = best;
+        out["embree_best_mode"] = best_mode;
         out["ratio_vs_embree_best"] = (rays / ms_packet / 1e3) / best;
-        if (!json) std::printf("          rtc / best Embree: %.2fx\n", (rays / ms_packet / 1e3) / best);
+        out["ratio_vs_embree_best_paired"] = paired;
+        if (!json) {
+          std::printf("          rtc / best Embree (%s): %.2fx (medians), %.2fx (paired by round)\n", best_mode.c_str(),
+                      (rays / ms_packet / 1e3) / best, paired);
+        }
       }
     } else {
       rtc::RenderOptions ro;
@@ -564,17 +635,23 @@ int run(int argc, char** argv) {
       ro.specialise = !no_specialise;
       ro.skip_empty = !no_skip_empty;
       ro.shadow_order = shadow_order;
-      auto time_frame = [&](const rtc::RenderOptions& options, rtc::TileRayCounts& counts, rtc::Image& image) {
-        rtc::Renderer renderer(scene, options);
-        const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(scene.animation.frame_begin);
-        return time_median_ms(reps, [&] {
-          counts = rtc::TileRayCounts{};
-          image = renderer.render_frame(*state, 32, nullptr, &counts);
-        });
+      // A renderer with its first frame prepared (untimed), and the frame rendered as the contender.
+      auto frame_contender = [&](const rtc::RenderOptions& options, rtc::TileRayCounts& frame_counts,
+                                 rtc::Image& image) {
+        auto renderer = std::make_shared<rtc::Renderer>(scene, options);
+        std::shared_ptr<const rtc::FrameState> state = renderer->prepare(scene.animation.frame_begin);
+        return rtc::bench::Contender{[renderer, state, &frame_counts, &image] {
+          frame_counts = rtc::TileRayCounts{};
+          image = renderer->render_frame(*state, 32, nullptr, &frame_counts);
+        }};
       };
-      rtc::TileRayCounts counts;
-      rtc::Image ours;
-      double ms = 0.0;
+      // The same renderer and shading code with every ray traced by Embree's packet calls.
+      const rtc::ExternalTracer tracer{embree.get(), &embree_intersect, &embree_occluded};
+      rtc::RenderOptions eo = ro;
+      eo.tracer = &tracer;
+      rtc::TileRayCounts counts, ecounts;
+      rtc::Image ours, theirs;
+      double ms = 0.0, ems = 0.0, frame_paired = 0.0;
       if (kernel_ab) {
         // General and specialised kernels, without and with empty-space skipping, one frame of
         // each in turn per repetition (so slow spells of a busy machine hit all four alike), all
@@ -657,8 +734,17 @@ int run(int argc, char** argv) {
         counts = chosen.counts;
         ours = chosen.image;
         ms = ab[chosen.name].get<double>();
+        if (compare) ems = rtc::bench::median_of(rtc::bench::time_rounds_ms(reps, {frame_contender(eo, ecounts, theirs)})[0]);
       } else {
-        ms = time_frame(ro, counts, ours);
+        // rtc's frame and the Embree renderer's take turns, round by round.
+        std::vector<rtc::bench::Contender> frames = {frame_contender(ro, counts, ours)};
+        if (compare) frames.push_back(frame_contender(eo, ecounts, theirs));
+        const std::vector<std::vector<double>> times = rtc::bench::time_rounds_ms(reps, frames);
+        ms = rtc::bench::median_of(times[0]);
+        if (compare) {
+          ems = rtc::bench::median_of(times[1]);
+          frame_paired = rtc::bench::paired_ratio(times[1], times[0]);
+        }
       }
       out["rays"] = counts.total();
       out["primary_rays"] = counts.primary;
@@ -684,13 +770,6 @@ int run(int argc, char** argv) {
                     fs->settings.max_depth, rtc::describe(fs->features).c_str(), out["kernel"].get<std::string>().c_str());
       }
       if (compare) {
-        // The same renderer and shading code, every ray traced by Embree (4-wide packets).
-        const rtc::ExternalTracer tracer{embree.get(), &embree_intersect, &embree_occluded};
-        rtc::RenderOptions eo = ro;
-        eo.tracer = &tracer;
-        rtc::TileRayCounts ecounts;
-        rtc::Image theirs;
-        const double ems = time_frame(eo, ecounts, theirs);
         std::uint64_t differ = 0;
         for (std::size_t i = 0; i < ours.rgba.size(); i += 4) {
           for (int k = 0; k < 3; ++k) {
@@ -704,11 +783,15 @@ int run(int argc, char** argv) {
         out["embree_frame_ms"] = ems;
         out["embree_rays"] = ecounts.total();
         out["ratio_vs_embree_frame"] = ems / ms;
+        // Paired by round (0 with --kernel-ab, whose kernels take turns among themselves only).
+        out["ratio_vs_embree_frame_paired"] = frame_paired;
         out["embree_frame_pixels_differing"] = frac;
         if (!json) {
           std::printf("          embree renderer (same shading, Embree packet calls of up to %d rays): %.1f ms (%llu rays); "
-                      "rtc is %.2fx its speed; %.4f%% of pixels differ by more than 1/255\n",
-                      kernels.packet_width, ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, 100.0 * frac);
+                      "rtc is %.2fx its speed (medians; %.2fx paired by round); %.4f%% of pixels differ by more than "
+                      "1/255\n",
+                      kernels.packet_width, ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, frame_paired,
+                      100.0 * frac);
         }
       }
     }

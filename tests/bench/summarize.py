@@ -42,9 +42,35 @@ def median_row(runs):
     return first
 
 
-def span(runs, key):
-    """The range of runs' figure `key` as "a-b" (or "" for one run)."""
-    values = [r[key] for r in runs if key in r]
+# rtc against Embree: since 2026-11-24 rtc-bench times the contenders in turn, round by round,
+# and reports the median of each round's ratio ("..._paired"); older lines have only the ratio
+# of the medians, taken one contender after another.
+RATIO_KEYS = {
+    "primary": ("ratio_vs_embree_best_paired", "ratio_vs_embree_best"),
+    "shadow": ("ratio_vs_embree_best_paired", "ratio_vs_embree_best"),
+    "full": ("ratio_vs_embree_frame_paired", "ratio_vs_embree_frame"),
+}
+
+
+def ratio(row, mode):
+    """The row's ratio to Embree for `mode`: paired by round where it has one, else of medians."""
+    for key in RATIO_KEYS[mode]:
+        if row.get(key):
+            return row[key]
+    return None
+
+
+def build_ratio(row):
+    """rtc's build time over Embree's high-quality build: paired by round where the row has it."""
+    if row.get("build_vs_embree_hq_paired"):
+        return row["build_vs_embree_hq_paired"]
+    hq = row.get("embree_build_hq_ms", 0)
+    return row.get("build_ms", 0) / hq if hq else None
+
+
+def span(runs, mode):
+    """The range of runs' ratio to Embree for `mode` as " (a-b)" (or "" for one run)."""
+    values = [v for v in (ratio(r, mode) for r in runs) if v is not None]
     if len(values) < 2:
         return ""
     return f" ({min(values):.2f}-{max(values):.2f})"
@@ -60,8 +86,7 @@ def main(path):
     spans = {}
     for (scene, threads, mode), group in grouped.items():
         by[(scene, threads)][mode] = median_row(group)
-        key = "ratio_vs_embree_frame" if mode == "full" else "ratio_vs_embree_best"
-        spans[(scene, threads, mode)] = span(group, key)
+        spans[(scene, threads, mode)] = span(group, mode)
     scenes = sorted({k[0] for k in by}, key=lambda s: (min(by[k]["primary"]["triangles"] for k in by if k[0] == s), s))
     any_row = next(iter(rows))
     print("# rtc-bench --compare-embree on the shared scenes\n")
@@ -74,9 +99,16 @@ def main(path):
     print(f"Regenerate with `{command}` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
           f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
           f"({any_row['reps']} here), then over {runs} run{'s' if runs > 1 else ''} of the whole sweep "
-          "(the ratios: medians of each run's ratios, with their range over the runs in brackets in the summary). Throughput in M rays/s. rtc's headline figure is its best ISA ({any_row['isa']}); "
-          "ratio = that / Embree's fastest mode. Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
-          "quality; s/M = rtc build seconds per million triangles. Full frame: rtc's Whitted renderer (shadows + "
+          "(the ratios: medians of each run's ratios, with their range over the runs in brackets in the summary). "
+          "Throughput in M rays/s. rtc's headline figure is its best ISA "
+          f"({any_row['isa']}); ratio = that / Embree's fastest mode. "
+          + ("Within a run every contender (rtc's kernels, Embree's modes; rtc's build and Embree's; rtc's frame "
+             "and the Embree renderer's) takes one turn per repetition, and each ratio is the median of the ratios "
+             "of the two times taken in the same repetition, so a slow spell of the machine falls on both sides. "
+             if any("ratio_vs_embree_best_paired" in r for r in rows) else "")
+          + "Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
+          "quality (high quality in the first 3 repetitions only); s/M = rtc build seconds per million triangles. "
+          "Full frame: rtc's Whitted renderer (shadows + "
           "reflections) against the same renderer and shading with every ray traced by Embree's packet calls; "
           "speed > 1 means rtc is faster. Primary rays are timed as traced on both sides; rtc's stream API also "
           "recomputes each hit's distance in double (refine_hit_distances), a step Embree's hits do not get: the "
@@ -95,13 +127,13 @@ def main(path):
             build = p.get("build_ms", 0)
             hq = p.get("embree_build_hq_ms", 0)
             print(f'| {scene} | {tris:,} | {thr} | {build:.0f} | {build / 1e3 / max(tris, 1) * 1e6:.2f} | {hq:.0f} | '
-                  f'{fmt(build / hq if hq else None)} | {p.get("mrays_per_s", 0):.2f} | {fmt(p.get("mrays_per_s_refined"))} | '
+                  f'{fmt(build_ratio(p))} | {p.get("mrays_per_s", 0):.2f} | {fmt(p.get("mrays_per_s_refined"))} | '
                   f'{p.get("embree_best_mrays_per_s", 0):.2f} | '
-                  f'**{p.get("ratio_vs_embree_best", 0):.2f}**{spans.get((scene, thr, "primary"), "")} | '
+                  f'**{fmt(ratio(p, "primary"))}**{spans.get((scene, thr, "primary"), "")} | '
                   f'{s.get("mrays_per_s", 0):.2f} | {s.get("embree_best_mrays_per_s", 0):.2f} | '
-                  f'**{s.get("ratio_vs_embree_best", 0):.2f}**{spans.get((scene, thr, "shadow"), "")} | '
+                  f'**{fmt(ratio(s, "shadow"))}**{spans.get((scene, thr, "shadow"), "")} | '
                   f'{f.get("frame_ms", 0):.0f} | {f.get("embree_frame_ms", 0):.0f} | '
-                  f'**{f.get("ratio_vs_embree_frame", 0):.2f}**{spans.get((scene, thr, "full"), "")} |')
+                  f'**{fmt(ratio(f, "full"))}**{spans.get((scene, thr, "full"), "")} |')
     print()
     for scene in scenes:
         first = next(by[k] for k in sorted(by) if k[0] == scene)["primary"]
@@ -130,7 +162,7 @@ def main(path):
                 print(f"| {thr} | {mode} | " + " | ".join(fmt(isa_figure(r, i)) for i in ISAS)
                       + f" | {fmt(r.get('mrays_per_s_single'))} | "
                       + " | ".join(fmt(emb.get(e, {}).get("mrays_per_s")) for e in EMBREE)
-                      + f" | {fmt(r.get('ratio_vs_embree_best'))} | {agree_text} |")
+                      + f" | {fmt(ratio(r, mode))} | {agree_text} |")
         for thr in (1, 2):
             modes = by.get((scene, thr))
             if not modes:
