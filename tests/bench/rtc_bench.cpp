@@ -788,9 +788,10 @@ int run(int argc, char** argv) {
         out["embree_frame_pixels_differing"] = frac;
         if (!json) {
           std::printf("          embree renderer (same shading, Embree packet calls of up to %d rays): %.1f ms (%llu rays); "
-                      "rtc is %.2fx its speed (medians; %.2fx paired by round); %.4f%% of pixels differ by more than "
-                      "1/255\n",
-                      kernels.packet_width, ems, static_cast<unsigned long long>(ecounts.total()), ems / ms, frame_paired,
+                      "rtc is %.2fx its speed (medians%s); %.4f%% of pixels differ by more than 1/255\n",
+                      kernels.packet_width, ems, static_cast<unsigned long long>(ecounts.total()), ems / ms,
+                      frame_paired > 0.0 ? fmt::format("; {:.2f}x paired by round", frame_paired).c_str()
+                                         : "; not paired: with --kernel-ab the Embree renderer runs after the kernels",
                       100.0 * frac);
         }
       }
