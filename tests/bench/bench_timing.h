@@ -83,11 +83,13 @@ inline std::vector<std::vector<double>> time_rounds_ms(int rounds, const std::ve
   return ms;
 }
 
-/// The median of `v` (the upper one of an even count, as time_stats_ms); 0 for none.
+/// The median of `v` (of an even count, the mean of the middle two, so that the median of
+/// paired ratios does not lean to either side); 0 for none.
 inline double median_of(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
 /// The median over the rounds both took part in of a[r] / b[r]: a ratio of two contenders

@@ -352,15 +352,18 @@ int run(int argc, char** argv) {
   std::shared_ptr<rtc::FrameState> fs;
   std::unique_ptr<EmbreeScene> embree, embree_hq;
   std::vector<rtc::bench::Contender> builders;
-  builders.push_back({[&] { fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options); },
+  builders.push_back({[&] {
+                        fs = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, kd_options);
+                      },
                       [&] {
                         embree.reset();
                         embree_hq.reset();
                         fs.reset();
                       }});
   if (compare) {
-    builders.push_back({[&] { embree = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles); },
-                        [&] { embree.reset(); }});
+    builders.push_back(
+        {[&] { embree = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles); },
+         [&] { embree.reset(); }});
     builders.push_back(
         {[&] {
            embree_hq = std::make_unique<EmbreeScene>(fs->geometry->positions, fs->geometry->triangles, false, true);
@@ -606,7 +609,8 @@ int run(int argc, char** argv) {
           }
           emb[EmbreeScene::mode_name(e.mode)] = m;
           if (!json) {
-            std::printf("          %-9s: %8.2f M rays/s (%.1f ms)%s\n", EmbreeScene::mode_name(e.mode).c_str(), mrays, ms,
+            std::printf("          %-9s: %8.2f M rays/s (%.1f ms)%s\n", EmbreeScene::mode_name(e.mode).c_str(), mrays,
+                        ms,
                         shadow ? fmt::format(", occlusion agreement {:.4f}%",
                                              100.0 * m["occlusion_agreement"].get<double>()).c_str()
                                : "");
@@ -734,7 +738,9 @@ int run(int argc, char** argv) {
         counts = chosen.counts;
         ours = chosen.image;
         ms = ab[chosen.name].get<double>();
-        if (compare) ems = rtc::bench::median_of(rtc::bench::time_rounds_ms(reps, {frame_contender(eo, ecounts, theirs)})[0]);
+        if (compare) {
+          ems = rtc::bench::median_of(rtc::bench::time_rounds_ms(reps, {frame_contender(eo, ecounts, theirs)})[0]);
+        }
       } else {
         // rtc's frame and the Embree renderer's take turns, round by round.
         std::vector<rtc::bench::Contender> frames = {frame_contender(ro, counts, ours)};

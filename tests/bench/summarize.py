@@ -103,7 +103,7 @@ def main(path):
           "Throughput in M rays/s. rtc's headline figure is its best ISA "
           f"({any_row['isa']}); ratio = that / Embree's fastest mode. "
           + ("Within a run every contender (rtc's kernels, Embree's modes; rtc's build and Embree's; rtc's frame "
-             "and the Embree renderer's) takes one turn per repetition, and each ratio is the median of the ratios "
+             "and the Embree renderer's) takes one turn per repetition, and each ratio is paired: the median of the ratios "
              "of the two times taken in the same repetition, so a slow spell of the machine falls on both sides. "
              if any("ratio_vs_embree_best_paired" in r for r in rows) else "")
           + "Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
