@@ -20,7 +20,7 @@ for m in ${AB_MODES:-primary shadow}; do mode_args="$mode_args --mode $m"; done
 out=tests/bench/results
 mkdir -p "$out"
 : > "$out/$name.txt.tmp"
-views=$(find "$scenes" -name 'view*.json' | sort)
+views=$(find -L "$scenes" -name 'view*.json' | sort)
 for r in $(seq "$rounds"); do
   for view in $views; do
     for k in 0 1; do

@@ -20,7 +20,7 @@ out=tests/bench/results
 mkdir -p "$out"
 jsonl=$out/kd_clip.jsonl
 : > "$jsonl.tmp"
-views=$(find "$scenes" -name 'view*.json' | sort)
+views=$(find -L "$scenes" -name 'view*.json' | sort)
 for view in $views; do
   for r in $(seq 1 "$repeat"); do
     for clip in off on; do

@@ -23,7 +23,7 @@ out=tests/bench/results
 mkdir -p "$out"
 jsonl=$out/$name.jsonl
 : > "$jsonl.tmp"
-views=$(find "$scenes" -name 'view*.json' | sort)
+views=$(find -L "$scenes" -name 'view*.json' | sort)
 for run in $(seq "$runs"); do
   for view in $views; do
     for threads in 1 2; do

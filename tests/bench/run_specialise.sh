@@ -37,7 +37,7 @@ run "default, no lights or mirrors" "" --no-lights --no-mirrors
 run "default, no lights or mirrors, no AOVs" "" --no-lights --no-mirrors --no-aovs
 run "default, no AOVs" "" --no-aovs
 if [ -d "$scenes" ]; then
-  for view in $(find "$scenes" -name 'view*.json' | sort); do
+  for view in $(find -L "$scenes" -name 'view*.json' | sort); do
     run "$(basename "$(dirname "$view")")/$(basename "$view")" "$view"
   done
 else

@@ -12,7 +12,7 @@ bench=build/release/tests/bench/rtc-bench
 [ -x "$bench" ] || { cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench; }
 out=tests/bench/results/sweep
 mkdir -p "$out"
-for view in $(find "$scenes" -name 'view*.json' | sort); do
+for view in $(find -L "$scenes" -name 'view*.json' | sort); do
   name=$(basename "$(dirname "$view")")
   case $(basename "$view") in view-*.json) name=$(basename "$view" .json); name=${name#view-} ;; esac
   args=(--sweep "$out/$name")

@@ -20,7 +20,7 @@ out=tests/bench/results
 mkdir -p "$out"
 jsonl=$out/$name.jsonl
 : > "$jsonl.tmp"
-for view in $(find "$scenes" -name 'view*.json' | sort); do
+for view in $(find -L "$scenes" -name 'view*.json' | sort); do
   echo "rtc-bench (stats build) $view" >&2
   # Shadow rays from either end, each order fixed: auto picks by timings, so its counts vary.
   "$bench" "$view" --threads 1 --reps 1 --mode primary --mode shadow --shadow-order near --json >> "$jsonl.tmp"
