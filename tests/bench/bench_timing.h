@@ -22,43 +22,28 @@ inline double cpu_ms() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-/// The median and the fastest of a set of timings, in ms.
-struct TimeStats {
-  double median_ms = 0.0;
-  double min_ms = 0.0;
-};
-
-/// Times `reps` calls of `fn`; `untimed` runs before each call, outside the timing (builders
-/// pass the release of the previous result there, so that freeing it is not counted as part
-/// of the next build).
-template <typename Fn, typename Untimed>
-TimeStats time_stats_ms(int reps, Fn&& fn, Untimed&& untimed) {
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    untimed();
-    Timer t;
-    const double c0 = cpu_ms();
-    fn();
-    ms.push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
-  }
-  std::sort(ms.begin(), ms.end());
-  return TimeStats{ms[ms.size() / 2], ms.front()};
+/// The time one call of `fn` takes, in ms: by the wall clock, or with --cpu-time by the
+/// process's CPU time.
+template <typename Fn>
+double time_once_ms(Fn&& fn) {
+  Timer t;
+  const double c0 = cpu_ms();
+  fn();
+  return g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms();
 }
 
-/// Median time of `reps` calls of `fn`, in ms; `untimed` as for time_stats_ms.
-template <typename Fn, typename Untimed>
-double time_median_ms(int reps, Fn&& fn, Untimed&& untimed) {
-  return time_stats_ms(reps, std::forward<Fn>(fn), std::forward<Untimed>(untimed)).median_ms;
-}
-
-/// Median time of `reps` calls of `fn`, in ms.
+/// Median time of `reps` calls of `fn`, in ms (of an even count, the upper of the middle two).
 template <typename Fn>
 double time_median_ms(int reps, Fn&& fn) {
-  return time_median_ms(reps, std::forward<Fn>(fn), [] {});
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) ms.push_back(time_once_ms(fn));
+  std::sort(ms.begin(), ms.end());
+  return ms[ms.size() / 2];
 }
 
 /// One contender of a round-robin timing: `fn` is timed, `untimed` runs before each call outside
-/// the timing (as for time_stats_ms); `rounds` limits the rounds it takes part in (0: all).
+/// the timing (builders release their previous result there, so that freeing it is not counted
+/// as part of the next build); `rounds` limits the rounds it takes part in (0: all).
 struct Contender {
   std::function<void()> fn;
   std::function<void()> untimed = [] {};
@@ -74,10 +59,7 @@ inline std::vector<std::vector<double>> time_rounds_ms(int rounds, const std::ve
     for (std::size_t c = 0; c < contenders.size(); ++c) {
       if (contenders[c].rounds > 0 && r >= contenders[c].rounds) continue;
       contenders[c].untimed();
-      Timer t;
-      const double c0 = cpu_ms();
-      contenders[c].fn();
-      ms[c].push_back(g_cpu_time ? cpu_ms() - c0 : t.elapsed_ms());
+      ms[c].push_back(time_once_ms(contenders[c].fn));
     }
   }
   return ms;

@@ -693,7 +693,7 @@ int run(int argc, char** argv) {
           c.image = std::move(frame);
         };
         for (int r = 0; r < ab_reps; ++r) {
-          for (Config& c : configs) c.ms.push_back(time_median_ms(1, [&] { render_with(c); }));
+          for (Config& c : configs) c.ms.push_back(rtc::bench::time_once_ms([&] { render_with(c); }));
         }
         bool same = true;
         for (const Config& c : configs) same = same && rtc::image_hash(c.image) == rtc::image_hash(configs[0].image);
