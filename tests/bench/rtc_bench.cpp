@@ -698,24 +698,21 @@ int run(int argc, char** argv) {
         bool same = true;
         for (const Config& c : configs) same = same && rtc::image_hash(c.image) == rtc::image_hash(configs[0].image);
         // Medians of each configuration's times, and medians of its time over the general
-        // kernel's in the same repetition (paired, so a slow spell cancels out).
+        // kernel's in the same repetition (paired, so a slow spell cancels out); of an even
+        // --ab-reps the mean of the middle two, as every other figure here (median_of).
         nlohmann::json ab = nlohmann::json::object(), ab_min = nlohmann::json::object(),
-                       ab_ratio = nlohmann::json::object();
-        const auto median = [](std::vector<double> v) {
-          std::sort(v.begin(), v.end());
-          return v[v.size() / 2];
-        };
+                       ab_ratio = nlohmann::json::object(), ab_rep = nlohmann::json::object();
         for (const Config& c : configs) {
-          std::vector<double> ratio;
-          for (std::size_t r = 0; r < c.ms.size(); ++r) ratio.push_back(c.ms[r] / configs[0].ms[r]);
-          ab[c.name] = median(c.ms);
+          ab_rep[c.name] = c.ms;  // every repetition's time, in order
+          ab[c.name] = rtc::bench::median_of(c.ms);
           ab_min[c.name] = *std::min_element(c.ms.begin(), c.ms.end());
-          ab_ratio[c.name] = median(ratio);
+          ab_ratio[c.name] = rtc::bench::paired_ratio(c.ms, configs[0].ms);
         }
         out["kernel_ab_reps"] = ab_reps;
         out["kernel_ab_ms"] = ab;
         out["kernel_ab_min_ms"] = ab_min;
         out["kernel_ab_ratio"] = ab_ratio;
+        out["kernel_ab_rep_ms"] = ab_rep;
         out["kernel_ab_same_pixels"] = same;
         out["primary_skipped_fraction"] =
             static_cast<double>(configs[3].counts.primary_skipped) / static_cast<double>(configs[3].counts.primary);
