@@ -15,6 +15,7 @@ usage: check_kernel_ab.py RTC_BENCH
 """
 import json
 import math
+import statistics
 import subprocess
 import sys
 
@@ -30,12 +31,6 @@ def check(cond, what):
 
 def finite_positive(value):
     return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-
-
-def median(values):
-    v = sorted(values)
-    m = len(v) // 2
-    return v[m] if len(v) % 2 else 0.5 * (v[m - 1] + v[m])
 
 
 def main(bench):
@@ -59,10 +54,12 @@ def main(bench):
     if failures:
         return
     for k in KERNELS:
-        check(math.isclose(ms.get(k, -1), median(reps[k]), rel_tol=1e-12), f"{k}: median {ms.get(k)} of {reps[k]}")
+        check(math.isclose(ms.get(k, -1), statistics.median(reps[k]), rel_tol=1e-12),
+              f"{k}: median {ms.get(k)} of {reps[k]}")
         check(fastest.get(k) == min(reps[k]), f"{k}: fastest {fastest.get(k)} of {reps[k]}")
-        paired = median([a / b for a, b in zip(reps[k], reps["general"])])
-        check(math.isclose(ratio.get(k, -1), paired, rel_tol=1e-12), f"{k}: paired ratio {ratio.get(k)}, expected {paired}")
+        paired = statistics.median([a / b for a, b in zip(reps[k], reps["general"])])
+        check(math.isclose(ratio.get(k, -1), paired, rel_tol=1e-12),
+              f"{k}: paired ratio {ratio.get(k)}, expected {paired}")
     check(ratio.get("general") == 1.0, f"the general kernel's ratio to itself is {ratio.get('general')}")
     skipped = row.get("primary_skipped_fraction")
     check(isinstance(skipped, (int, float)) and 0.0 <= skipped <= 1.0, f"primary_skipped_fraction {skipped}")

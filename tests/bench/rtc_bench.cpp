@@ -137,8 +137,6 @@ void embree_occluded(void* context, const RayQuery* rays, std::uint8_t* out, std
   static_cast<const EmbreeScene*>(context)->occluded(rays, out, count, packet_mode(count));
 }
 
-using rtc::bench::time_median_ms;
-
 template <typename Fn>
 void for_chunks(const RayStream& s, Fn&& fn) {
   tbb::parallel_for(std::size_t{0}, s.chunk_begin.size() - 1, [&](std::size_t c) {
