@@ -614,11 +614,32 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       continue;
     } else {
       const TriRecord* leaf = records + node.prim_offset();
-      stats.leaf(node.count);
-      if (intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, node.count, ray, active, hit, occluded)) {
-        stats.tests(node.count, 1);  // one live lane, the leaf's triangles side by side
+      const std::uint32_t count = node.tri_count();
+      stats.leaf(count);
+      if (node.has_box()) {
+        // The leaf's LeafBox: lanes whose segment misses it cannot hit its triangles here.
+        // The same slab test as the tree's box above (NaN keeps the segment), with the
+        // conservative reach, so a lane is dropped only when it surely misses.
+        const LeafBox& b = leaf[-1].box;
+        const float lo[3] = {b.lo_x, b.lo_y, b.lo_z}, hi[3] = {b.hi_x, b.hi_y, b.hi_z};
+        vfloat<N> enter = near, leave = far;
+        for (int axis = 0; axis < 3; ++axis) {
+          const bool negative = (sign_bits >> axis) & 1u;
+          const vfloat<N> t_entry = (vfloat<N>(negative ? hi[axis] : lo[axis]) - ray.org[axis]) * inv_dir[axis];
+          const vfloat<N> t_exit = (vfloat<N>(negative ? lo[axis] : hi[axis]) - ray.org[axis]) * inv_dir[axis];
+          enter = max(t_entry, enter);
+          leave = min(t_exit, leave);
+        }
+        const vbool<N> inside = active & (enter <= leave * vfloat<N>(1.0f + 0x1p-20f));
+        stats.box(static_cast<std::uint32_t>(std::popcount(bits(active))),
+                  static_cast<std::uint32_t>(std::popcount(bits(inside))));
+        if (none(inside)) goto pop;
+        active = inside;
+      }
+      if (intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, count, ray, active, hit, occluded)) {
+        stats.tests(count, 1);  // one live lane, the leaf's triangles side by side
       } else {
-        for (std::uint32_t i = 0; i < node.count; ++i) {
+        for (std::uint32_t i = 0; i < count; ++i) {
           if constexpr (kWalkStats) stats.tests(1, static_cast<std::uint32_t>(std::popcount(bits(active))));
           test.template intersect<kOcclusion>(leaf[i], ray, active, hit, occluded);
           if constexpr (kOcclusion) {

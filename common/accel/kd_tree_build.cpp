@@ -7,6 +7,7 @@
 // 2008, section 4.3), without further clipping. Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -91,6 +92,7 @@ struct BuildContext {
   // code where they have one.
   bool avx512 = false;
   bool avx2 = false;
+  float leaf_box_saving = 0.0f;  // KdBuildOptions::leaf_box_saving (0: no LeafBox)
 };
 
 // The vector code a build takes: KdBuildOptions::simd, up to its simd_limit, as far as the CPU
@@ -353,18 +355,37 @@ Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box,
 // A subtree swept exactly, laid out as the final tree will be (children adjacent, depth
 // first, left before right) but with node and reference indices local to the block.
 struct Block {
+  // A reference that is a leaf's LeafBox slot: this bit and the box's index in `boxes`
+  // (triangle indices are below 2^30).
+  static constexpr std::uint32_t kBoxSlot = 1u << 31;
+
   std::vector<KdNode> nodes;  // the subtree's root at 0
   std::vector<std::uint32_t> refs;
+  std::vector<Aabb> boxes;  // the leaves' boxes (kBoxSlot), not yet widened
   std::uint64_t leaves = 0;
   std::uint64_t empty_leaves = 0;
   int max_depth = 0;
   double cost_area = 0;  // SAH cost times the area of the tree's root box
 
   // Makes nodes[index] a leaf over triangles tris[local[i]] (`local` ascending, so the leaf's
-  // triangles are too), and adds its `count` references' share of the SAH cost.
+  // triangles are too), and adds its `count` references' share of the SAH cost. `content`: the
+  // triangles' bounds in the leaf's cell `cell`; a slot for it goes before the first reference
+  // where it saves at least `box_saving` (> 0) triangle tests per visit by the SAH's estimate
+  // (KdBuildOptions::leaf_box_saving).
   void add_leaf(std::size_t index, std::span<const std::uint32_t> tris, std::span<const std::uint32_t> local,
-                std::size_t count, float area, float intersection_cost) {
-    nodes[index] = KdNode::leaf(refs.size(), static_cast<std::uint32_t>(local.size()));
+                std::size_t count, float area, float intersection_cost, const Aabb& content, const Aabb& cell,
+                float box_saving) {
+    bool boxed = false;
+    if (box_saving > 0.0f && !local.empty() && !content.empty()) {
+      const float cell_area = cell.area();
+      const float miss = cell_area > 0.0f ? 1.0f - std::min(content.area() / cell_area, 1.0f) : 0.0f;
+      boxed = static_cast<float>(local.size()) * miss >= box_saving;
+    }
+    if (boxed) {
+      refs.push_back(kBoxSlot | static_cast<std::uint32_t>(boxes.size()));
+      boxes.push_back(content);
+    }
+    nodes[index] = KdNode::leaf(refs.size(), static_cast<std::uint32_t>(local.size()), boxed);
     for (std::uint32_t i : local) refs.push_back(tris[i]);
     ++leaves;
     if (local.empty()) ++empty_leaves;
@@ -1552,7 +1573,7 @@ class MaskBuilder {
         }
       }
       if (chosen == kNone || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
-        leaf<W>(task.index, mask, count, area);
+        leaf<W>(task.index, mask, count, area, box);
         continue;
       }
       out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
@@ -1576,8 +1597,10 @@ class MaskBuilder {
     }
   }
 
+  // `box`: the leaf's cell. Its LeafBox bounds the references' bounds at the subtree's root
+  // (they are not clipped below it) within the cell.
   template <int W>
-  void leaf(std::size_t index, const MaskBits<W>& mask, std::size_t count, float area) {
+  void leaf(std::size_t index, const MaskBits<W>& mask, std::size_t count, float area, const Aabb& box) {
     std::vector<std::uint32_t>& local = s_.leaf;
     local.clear();
     for (int w = 0; w < W; ++w) {
@@ -1585,7 +1608,10 @@ class MaskBuilder {
         local.push_back(s_.mask_refs[64u * static_cast<unsigned>(w) + static_cast<unsigned>(std::countr_zero(m))]);
       }
     }
-    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
+    Aabb content;
+    for (std::uint32_t i : local) content.extend(s_.bounds[i]);
+    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost, clamp_box(content, box), box,
+                  ctx_.leaf_box_saving);
   }
 
   const BuildContext& ctx_;
@@ -1666,7 +1692,7 @@ class BlockBuilder {
       }
     }
     if (split.axis < 0 || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
-      leaf(index, off[0], len[0], count, area);
+      leaf(index, off, len, count, area, box);
       return;
     }
     out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
@@ -1892,16 +1918,27 @@ class BlockBuilder {
     }
   }
 
-  void leaf(std::size_t index, std::size_t off, std::size_t len, std::size_t count, float area) {
+  // `box`: the leaf's cell. Its references' bounds there (clipped where they straddle a split
+  // above, clamped to the block's box without clipping) span each axis's sorted events, so the
+  // first and last events give their union (the LeafBox), within the cell.
+  void leaf(std::size_t index, const std::size_t off[3], const std::size_t len[3], std::size_t count, float area,
+            const Aabb& box) {
     std::vector<std::uint32_t>& local = s_.leaf;
     local.clear();
-    const Event* ev = s_.arena.at(off);
-    for (std::size_t i = 0; i < len; ++i) {
+    const Event* ev = s_.arena.at(off[0]);
+    for (std::size_t i = 0; i < len[0]; ++i) {
       if (ev[i].type() != kEnd) local.push_back(ev[i].ref());  // one start or planar per reference
     }
     // The block's triangle list is ascending, so sorted local indices give sorted triangles.
     sort_distinct(local, tris_.size(), s_.sort_bits);
-    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost);
+    Aabb content;
+    for (int axis = 0; axis < 3 && len[axis] > 0; ++axis) {
+      const Event* e = s_.arena.at(off[axis]);
+      content.lo[axis] = std::max(e[0].pos, box.lo[axis]);
+      content.hi[axis] = std::min(e[len[axis] - 1].pos, box.hi[axis]);
+    }
+    out_.add_leaf(index, tris_, local, count, area, ctx_.options.intersection_cost, content, box,
+                  ctx_.leaf_box_saving);
   }
 
   const BuildContext& ctx_;
@@ -2210,24 +2247,54 @@ class TopBuilder {
   tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 
+// A leaf's LeafBox: `box` widened by `pad` on every side.
+LeafBox make_leaf_box(const Aabb& box, float pad) {
+  LeafBox b{};
+  b.lo_x = box.lo.x - pad;
+  b.lo_y = box.lo.y - pad;
+  b.lo_z = box.lo.z - pad;
+  b.hi_x = box.hi.x + pad;
+  b.hi_y = box.hi.y + pad;
+  b.hi_z = box.hi.z + pad;
+  b.k = 3;
+  b.id = kLeafBoxRef;
+  return b;
+}
+
 // Copies the blocks into the final arrays at the places a depth-first layout gives them; the
-// sizes each subtree reported let both children be placed at once.
+// sizes each subtree reported let both children be placed at once. A leaf's box slot gets
+// kLeafBoxRef and its LeafBox record (`records`, the tree's leaf records; the triangles'
+// records are copied in afterwards).
 struct Placer {
   KdNode* nodes;
   std::uint32_t* refs;
+  TriRecord* records;
+  float box_pad;
 
   void place(const TopNode& t, std::uint64_t index, std::uint64_t node_base, std::uint64_t ref_base) const {
     if (t.axis < 0) {
       const std::vector<KdNode>& local = t.block.nodes;
       auto relocate = [&](KdNode n) {
-        if (n.is_leaf()) return KdNode::leaf(n.prim_offset() + ref_base, n.count);
+        if (n.is_leaf()) return KdNode::leaf(n.prim_offset() + ref_base, n.tri_count(), n.has_box());
         return KdNode::inner(n.left() - 1 + node_base, n.axis(), n.split, local[n.left()].is_empty_leaf(),
                              local[n.left() + 1].is_empty_leaf());
       };
       nodes[index] = relocate(local[0]);
       for (std::size_t i = 1; i < local.size(); ++i) nodes[node_base + i - 1] = relocate(local[i]);
-      if (!t.block.refs.empty()) {
-        std::memcpy(refs + ref_base, t.block.refs.data(), t.block.refs.size() * sizeof(std::uint32_t));
+      if (t.block.boxes.empty()) {
+        if (!t.block.refs.empty()) {
+          std::memcpy(refs + ref_base, t.block.refs.data(), t.block.refs.size() * sizeof(std::uint32_t));
+        }
+        return;
+      }
+      for (std::size_t i = 0; i < t.block.refs.size(); ++i) {
+        const std::uint32_t r = t.block.refs[i];
+        if ((r & Block::kBoxSlot) == 0) {
+          refs[ref_base + i] = r;
+        } else {
+          refs[ref_base + i] = kLeafBoxRef;
+          records[ref_base + i].box = make_leaf_box(t.block.boxes[r & ~Block::kBoxSlot], box_pad);
+        }
       }
       return;
     }
@@ -2336,9 +2403,9 @@ KdClip parse_kd_clip(std::string_view text) {
 std::string KdBuildStats::to_string() const {
   return fmt::format(
       "kd-tree: {} triangles ({} degenerate skipped) in {:.1f} ms, {} nodes, {} leaves ({} empty), "
-      "max depth {}, {:.2f} triangles per non-empty leaf, {} refs, SAH cost {:.2f}, {:.1f} MiB",
+      "max depth {}, {:.2f} triangles per non-empty leaf, {} refs, {} leaf boxes, SAH cost {:.2f}, {:.1f} MiB",
       triangles, degenerate, build_ms, nodes, leaves, empty_leaves, max_depth, mean_tris_per_leaf, prim_refs,
-      sah_cost, static_cast<double>(bytes) / (1024.0 * 1024.0));
+      leaf_boxes, sah_cost, static_cast<double>(bytes) / (1024.0 * 1024.0));
 }
 
 KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles,
@@ -2408,7 +2475,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
   BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
-                   options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2};
+                   options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
+                   std::max(options.leaf_box_saving, 0.0f)};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
@@ -2418,7 +2486,13 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   }
   tree.nodes_ = RawArray<KdNode>(node_total);  // the placer writes every node and reference once
   tree.prim_refs_ = RawArray<std::uint32_t>(top->refs);
-  Placer{tree.nodes_.data(), tree.prim_refs_.data()}.place(*top, 0, 1, 0);
+  tree.leaf_records_ = RawArray<TriRecord>(top->refs);  // the placer writes the boxes, the copy below the rest
+  // Leaf boxes are widened by 2^-18 of the scene's largest coordinate (~32 float ulps there):
+  // the float triangle test accepts hits a rounding error outside a triangle, and such a hit
+  // must not fall outside the box of the leaf that holds it.
+  const glm::vec3 mag = glm::max(glm::abs(root.lo), glm::abs(root.hi));
+  const float box_pad = std::max({mag.x, mag.y, mag.z}) * 0x1p-18f;
+  Placer{tree.nodes_.data(), tree.prim_refs_.data(), tree.leaf_records_.data(), box_pad}.place(*top, 0, 1, 0);
   double cost_area = 0.0;
   add_stats(*top, root, 0, options, ctx.sah_scale, tree.stats_, cost_area);
   const float root_area = scaled_area(root, ctx.sah_scale);
@@ -2426,13 +2500,23 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
-  tree.leaf_records_ = RawArray<TriRecord>(tree.prim_refs_.size());
+  std::atomic<std::uint64_t> boxes{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) tree.leaf_records_[i] = records[tree.prim_refs_[i]];
+    std::uint64_t n = 0;
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const std::uint32_t r = tree.prim_refs_[i];
+      if (r != kLeafBoxRef) {
+        tree.leaf_records_[i] = records[r];
+      } else {
+        ++n;
+      }
+    }
+    boxes += n;
   });
 
   tree.stats_.nodes = tree.nodes_.size();
-  tree.stats_.prim_refs = tree.prim_refs_.size();
+  tree.stats_.leaf_boxes = boxes;
+  tree.stats_.prim_refs = tree.prim_refs_.size() - tree.stats_.leaf_boxes;
   tree.stats_.bytes = tree.nodes_.size() * sizeof(KdNode) + tree.prim_refs_.size() * sizeof(std::uint32_t) +
                       tree.leaf_records_.size() * sizeof(TriRecord);
   const std::uint64_t full = tree.stats_.leaves - tree.stats_.empty_leaves;
@@ -2440,7 +2524,6 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   // Enlarge the traversal bounds by a few ulps of the largest coordinate so that rays grazing
   // the outermost triangles are not clipped away by rounding in the slab test.
-  const glm::vec3 mag = glm::max(glm::abs(root.lo), glm::abs(root.hi));
   const float pad = std::max({mag.x, mag.y, mag.z}) * 4.0f * std::numeric_limits<float>::epsilon();
   tree.bounds_.lo = root.lo - glm::vec3(pad);
   tree.bounds_.hi = root.hi + glm::vec3(pad);

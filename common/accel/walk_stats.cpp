@@ -26,9 +26,10 @@ std::string WalkStats::to_string() const {
   char buf[256];
   std::snprintf(buf, sizeof buf,
                 "walks %llu, lanes %.2f/walk, inner %.2f, leaves %.2f (+%.2f empty), pushes %.2f, "
-                "tests %.2f x %.2f lanes",
+                "tests %.2f x %.2f lanes, leaf boxes %.2f (%.2f skipped), lanes %.2f of %.2f kept",
                 static_cast<unsigned long long>(walks), per(lanes, walks), per(inner, walks), per(leaves, walks),
-                per(empty_leaves, walks), per(pushes, walks), per(tests, walks), per(test_lanes, tests));
+                per(empty_leaves, walks), per(pushes, walks), per(tests, walks), per(test_lanes, tests),
+                per(box_tests, walks), per(box_skips, walks), per(box_kept, box_tests), per(box_lanes, box_tests));
   return buf;
 }
 

@@ -31,15 +31,20 @@ struct WalkStats {
   std::uint64_t pushes = 0;        // subtrees stacked
   std::uint64_t tests = 0;         // triangle records tested (a leaf tested side by side counts each)
   std::uint64_t test_lanes = 0;
+  std::uint64_t box_tests = 0;     // leaves whose LeafBox was tested
+  std::uint64_t box_skips = 0;     // ... of which no lane's segment met the box (no triangle tested)
+  std::uint64_t box_lanes = 0;     // lanes live at the box tests
+  std::uint64_t box_kept = 0;      // ... of which the box kept (their segment meets it)
 
   WalkStats& operator+=(const WalkStats& o);
-  /// Per walk: "walks W, lanes L/walk, inner I, leaves F (+E empty), pushes P, tests T x N lanes".
+  /// Per walk: "walks W, lanes L/walk, inner I, leaves F (+E empty), pushes P, tests T x N lanes,
+  /// leaf boxes B (S skipped), lanes K of M kept".
   [[nodiscard]] std::string to_string() const;
 };
 
 /// Every counter of WalkStats with its name (the JSON keys rtc-bench writes): the one list that
 /// summing, the totals and the JSON go through.
-inline constexpr std::array<std::pair<const char*, std::uint64_t WalkStats::*>, 8> kWalkStatsFields = {{
+inline constexpr std::array<std::pair<const char*, std::uint64_t WalkStats::*>, 12> kWalkStatsFields = {{
     {"walks", &WalkStats::walks},
     {"lanes", &WalkStats::lanes},
     {"inner", &WalkStats::inner},
@@ -48,6 +53,10 @@ inline constexpr std::array<std::pair<const char*, std::uint64_t WalkStats::*>, 
     {"pushes", &WalkStats::pushes},
     {"tests", &WalkStats::tests},
     {"test_lanes", &WalkStats::test_lanes},
+    {"box_tests", &WalkStats::box_tests},
+    {"box_skips", &WalkStats::box_skips},
+    {"box_lanes", &WalkStats::box_lanes},
+    {"box_kept", &WalkStats::box_kept},
 }};
 
 /// The totals kept: walks of one ray (`packet` false) or of packets, closest hit or occlusion.
@@ -68,6 +77,7 @@ struct WalkCounter {
   void push() {}
   void leaf(std::uint32_t) {}
   void tests(std::uint32_t, std::uint32_t) {}
+  void box(std::uint32_t, std::uint32_t) {}
 };
 
 template <>
@@ -89,6 +99,13 @@ struct WalkCounter<true> {
   void tests(std::uint32_t count, std::uint32_t lanes) {
     s_.tests += count;
     s_.test_lanes += static_cast<std::uint64_t>(count) * lanes;
+  }
+  // A LeafBox tested with `lanes` live lanes, `kept` of them meeting it.
+  void box(std::uint32_t lanes, std::uint32_t kept) {
+    ++s_.box_tests;
+    s_.box_skips += kept == 0;
+    s_.box_lanes += lanes;
+    s_.box_kept += kept;
   }
 
  private:

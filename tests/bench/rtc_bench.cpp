@@ -2,6 +2,7 @@
 // of rtc's tracer on one scene, optionally beside Embree 3 tracing the same rays in the same
 // run (--compare-embree), with per-pixel agreement. Speed is reported, never asserted.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -244,6 +245,15 @@ int run(int argc, char** argv) {
   std::string kd_clip_text = "auto";
   rtc::add_kd_clip_option(app, kd_clip_text);
   app.add_option("--kd-leaf-size", kd_options.leaf_size, "nodes this small become leaves")->check(CLI::Range(1, 1024));
+  app.add_option("--kd-leaf-box-saving", kd_options.leaf_box_saving,
+                 "leaves get a box of their contents, tested before them, where it saves at least this many "
+                 "triangle tests per visit by the SAH's estimate (0: no boxes)")
+      ->check(CLI::Range(0.0f, 1e9f));
+  float ab_leaf_box_saving = -1.0f;
+  app.add_option("--ab-kd-leaf-box-saving", ab_leaf_box_saving,
+                 "primary and shadow modes: also build a tree with this --kd-leaf-box-saving and time its packets and "
+                 "single rays rep by rep beside the first tree's (paired ratios; the answers must be the same)")
+      ->check(CLI::Range(0.0f, 1e9f));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
@@ -374,6 +384,13 @@ int run(int argc, char** argv) {
   const double build_ms = rtc::bench::median_of(build_rounds[0]);
   const double build_min_ms = *std::min_element(build_rounds[0].begin(), build_rounds[0].end());
   const rtc::KdBuildStats& kd = fs->geometry->single_tree().stats();
+  // --ab-kd-leaf-box-saving: the second tree, built once, untimed.
+  std::shared_ptr<rtc::FrameState> fs_ab;
+  if (ab_leaf_box_saving >= 0.0f) {
+    rtc::KdBuildOptions o = kd_options;
+    o.leaf_box_saving = ab_leaf_box_saving;
+    fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, o);
+  }
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
   double embree_build_ms = 0.0, embree_build_hq_ms = 0.0, build_vs_embree_hq = 0.0;
   if (compare) {
@@ -404,6 +421,8 @@ int run(int argc, char** argv) {
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_intersection_cost", kd_options.intersection_cost},
                          {"kd_mask_below", kd_options.effective_mask_below()},
+                         {"kd_leaf_box_saving", kd_options.leaf_box_saving},
+                         {"kd_leaf_boxes", kd.leaf_boxes},
                          {"reps", reps}};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;
@@ -514,9 +533,64 @@ int run(int argc, char** argv) {
           });
         }});
       }
+      // --ab-kd-leaf-box-saving: the second tree's packets and single rays, last.
+      const std::size_t first_ab = contenders.size();
+      std::vector<RayHit> hits_ab, hits_ab_single;
+      std::vector<std::uint8_t> occ_ab, occ_ab_single;
+      rtc::ShadowOrderTally tally_ab, tally_ab_single;
+      if (fs_ab) {
+        contenders.push_back({[&] {
+          trace_stream(kernels, *fs_ab, s, shadow, true, hits_ab, occ_ab, false, shadow_order, &tally_ab);
+        }});
+        contenders.push_back({[&] {
+          trace_stream(kernels, *fs_ab, s, shadow, false, hits_ab_single, occ_ab_single, false, shadow_order,
+                       &tally_ab_single);
+        }});
+      }
       const std::vector<std::vector<double>> times = rtc::bench::time_rounds_ms(reps, contenders);
       const double ms_packet = rtc::bench::median_of(times[0]);
       const double ms_single = rtc::bench::median_of(times[1]);
+      if (fs_ab) {
+        // The same answers from both trees, bit for bit, else the comparison is void. (The
+        // refined pass shares `scratch`: the packets' own hits again first.)
+        ours(true, false);
+        std::uint64_t differ = 0;
+        for (std::size_t i = 0; i < s.rays.size(); ++i) {
+          if (s.pixel[i] < 0) continue;
+          if (shadow) {
+            differ += (occ[i] != 0) != (occ_ab[i] != 0) || (occ_single[i] != 0) != (occ_ab_single[i] != 0);
+          } else {
+            // A miss has no distance or weights to compare.
+            const RayHit& a = scratch[i];
+            for (const RayHit* b : {&hits_ab[i], &scratch_single[i], &hits_ab_single[i]}) {
+              differ += a.prim != b->prim ||
+                        (a.prim != rtc::kNoHit &&
+                         (std::bit_cast<std::uint32_t>(a.t) != std::bit_cast<std::uint32_t>(b->t) ||
+                          std::bit_cast<std::uint32_t>(a.beta) != std::bit_cast<std::uint32_t>(b->beta) ||
+                          std::bit_cast<std::uint32_t>(a.gamma) != std::bit_cast<std::uint32_t>(b->gamma)));
+            }
+          }
+        }
+        const rtc::KdBuildStats& kd_ab = fs_ab->geometry->single_tree().stats();
+        const double rays = static_cast<double>(s.real);
+        // Speed of the second tree over the first's, paired round by round (time a / time b).
+        const double packet_ratio = rtc::bench::paired_ratio(times[0], times[first_ab]);
+        const double single_ratio = rtc::bench::paired_ratio(times[1], times[first_ab + 1]);
+        out["ab"] = {{"kd_leaf_box_saving", ab_leaf_box_saving},
+                     {"kd_leaf_boxes", kd_ab.leaf_boxes},
+                     {"mrays_per_s", rays / rtc::bench::median_of(times[first_ab]) / 1e3},
+                     {"mrays_per_s_single", rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3},
+                     {"speed_vs_first_paired", packet_ratio},
+                     {"speed_vs_first_single_paired", single_ratio},
+                     {"answers_differ", differ}};
+        if (!json) {
+          std::printf("  %-7s tree with --kd-leaf-box-saving %g: packets %.2f M rays/s (%.3fx the first tree's, paired), "
+                      "single rays %.2f (%.3fx)%s\n",
+                      mode.c_str(), static_cast<double>(ab_leaf_box_saving), rays / rtc::bench::median_of(times[first_ab]) / 1e3, packet_ratio,
+                      rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3, single_ratio,
+                      differ != 0 ? ", ANSWERS DIFFER" : "");
+        }
+      }
 
       if constexpr (rtc::kWalkStats) {
         // Stats builds: the walks' counts over `reps` passes of each kernel, outside the timing.

@@ -53,9 +53,18 @@ Soup test_scene() {
   return s;
 }
 
+// A LeafBox wherever a leaf's triangles fill less than its cell (KdBuildOptions::leaf_box_saving):
+// the boxes' faces are planes at the triangles' extremes, which every case below must also pass.
+KdBuildOptions boxes_everywhere() {
+  KdBuildOptions o;
+  o.leaf_box_saving = 1e-6f;
+  return o;
+}
+
 struct Fixture {
   Soup soup = test_scene();
   KdTree tree = KdTree::build(soup.positions, soup.triangles);
+  KdTree boxed = KdTree::build(soup.positions, soup.triangles, boxes_everywhere());
   BruteForce oracle{soup.positions, soup.triangles};
   Aabb box = bounds_of(soup);
 };
@@ -67,13 +76,17 @@ const Fixture& fixture() {
 
 void run(const std::vector<RayQuery>& rays, const std::string& what, EdgeRounding edges = EdgeRounding::Exact) {
   const Fixture& f = fixture();
-  const Agreement a = expect_agrees_with_brute_force(f.tree, f.oracle, rays, what, edges);
-  std::vector<RayHit> hits(rays.size());
-  trace_kernels().intersect(f.tree, rays.data(), hits.data(), rays.size(), true);
-  EXPECT_EQ(check_hit_sanity(f.soup.positions, f.soup.triangles, rays, hits, what), 0u);
-  std::printf("%s: %s\n", what.c_str(), a.summary().c_str());
-  EXPECT_EQ(a.mismatches, 0u) << what << ": " << a.summary();
-  EXPECT_GT(a.hits, rays.size() / 10) << what << ": too few hits to mean much";
+  ASSERT_GT(f.boxed.stats().leaf_boxes, 100u) << "too few leaf boxes to mean much";
+  for (const KdTree* tree : {&f.tree, &f.boxed}) {
+    const std::string name = what + (tree == &f.boxed ? " (leaf boxes everywhere)" : "");
+    const Agreement a = expect_agrees_with_brute_force(*tree, f.oracle, rays, name, edges);
+    std::vector<RayHit> hits(rays.size());
+    trace_kernels().intersect(*tree, rays.data(), hits.data(), rays.size(), true);
+    EXPECT_EQ(check_hit_sanity(f.soup.positions, f.soup.triangles, rays, hits, name), 0u);
+    std::printf("%s: %s\n", name.c_str(), a.summary().c_str());
+    EXPECT_EQ(a.mismatches, 0u) << name << ": " << a.summary();
+    EXPECT_GT(a.hits, rays.size() / 10) << name << ": too few hits to mean much";
+  }
 }
 
 TEST(StressRays, AxisParallelAndZeroComponentsAgreeWithBruteForce) {
@@ -138,6 +151,42 @@ TEST(StressRays, OriginsOnSplitPlanesCrossingThePlaneAgreeWithBruteForce) {
 // rays differed); it now decides per stacked subtree (tests/stress/README.md).
 TEST(StressRays, OriginsOnSplitPlanesLyingInThePlaneAgreeWithBruteForce) {
   run(split_plane_rays(48, true), "origins on split planes, in the plane");  // seed 48
+}
+
+// The same on the faces of the leaf boxes (the tree with boxes everywhere): origins exactly on
+// a face's plane, across it, along its axis or lying in it (0 * inf = NaN in the box's slab
+// test, which must keep the lane).
+std::vector<RayQuery> leaf_box_face_rays(std::uint32_t seed, bool in_plane) {
+  const Fixture& f = fixture();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> d(-1.0f, 1.0f), u(0.0f, 1.0f);
+  std::vector<RayQuery> rays;
+  for (std::size_t i = 0; i < f.boxed.prim_refs().size(); ++i) {
+    if (f.boxed.prim_refs()[i] != kLeafBoxRef) continue;
+    const LeafBox& b = f.boxed.leaf_records()[i].box;
+    const glm::vec3 lo(b.lo_x, b.lo_y, b.lo_z), hi(b.hi_x, b.hi_y, b.hi_z);
+    const int a = static_cast<int>(rng() % 3);
+    RayQuery r;
+    // Mostly over the face, sometimes beside it.
+    const glm::vec3 spread = (hi - lo) * 1.4f;
+    r.org = lo - (hi - lo) * 0.2f + glm::vec3(u(rng) * spread.x, u(rng) * spread.y, u(rng) * spread.z);
+    r.org[a] = rng() % 2 ? lo[a] : hi[a];
+    r.dir = glm::vec3(d(rng), d(rng), d(rng));
+    if (in_plane) {
+      r.dir[a] = rng() % 2 ? 0.0f : -0.0f;
+    } else if (rng() % 2) {
+      r.dir = glm::vec3(0.0f);
+      r.dir[a] = d(rng) < 0.0f ? -1.0f : 1.0f;
+    }
+    if (r.dir == glm::vec3(0.0f)) r.dir[(a + 1) % 3] = 1.0f;
+    rays.push_back(r);
+  }
+  return rays;
+}
+
+TEST(StressRays, OriginsOnLeafBoxFacesAgreeWithBruteForce) {
+  run(leaf_box_face_rays(67, false), "origins on leaf box faces, crossing");  // seed 67
+  run(leaf_box_face_rays(71, true), "origins on leaf box faces, in the plane");  // seed 71
 }
 
 TEST(StressRays, OriginsOnTriangleEdgesAndVerticesAgreeWithBruteForce) {

@@ -172,6 +172,11 @@ void check_mesh(const Mesh& base, int directions) {
     watertight_options.watertight = true;
     const KdTree wald = KdTree::build(m.positions, m.triangles, wald_options);
     const KdTree watertight = KdTree::build(m.positions, m.triangles, watertight_options);
+    // With a LeafBox wherever a leaf's triangles fill less than its cell: the boxes must not
+    // cost the watertight test a hit either.
+    watertight_options.leaf_box_saving = 1e-6f;
+    const KdTree boxed = KdTree::build(m.positions, m.triangles, watertight_options);
+    EXPECT_GT(boxed.stats().leaf_boxes, 0u);
     const TraceKernels& best = trace_kernels();
     const Counts w = count_misses(wald, rays, at_vertex, best, true, false);
     std::printf("%s, scale %g at (%g, %g, %g): %zu rays; Wald's test: %zu missed (%.4f%%, %zu at vertices), %zu not "
@@ -183,13 +188,18 @@ void check_mesh(const Mesh& base, int directions) {
     for (const Isa isa : {best_isa(), Isa::Sse42}) {
       for (const bool packets : {true, false}) {
         if (isa == Isa::Sse42 && packets && best_isa() == Isa::Sse42) continue;
-        const Counts c = count_misses(watertight, rays, at_vertex, trace_kernels(isa), packets, true);
-        EXPECT_EQ(c.missed, 0u) << m.name << " scale " << scale << " " << isa_name(isa) << (packets ? " packets" : " single");
-        EXPECT_EQ(c.unoccluded, 0u) << m.name << " scale " << scale << " " << isa_name(isa)
-                                    << (packets ? " packets" : " single");
+        for (const KdTree* tree : {&watertight, &boxed}) {
+          const char* kind = tree == &boxed ? ", leaf boxes" : "";
+          const Counts c = count_misses(*tree, rays, at_vertex, trace_kernels(isa), packets, true);
+          EXPECT_EQ(c.missed, 0u) << m.name << " scale " << scale << " " << isa_name(isa)
+                                  << (packets ? " packets" : " single") << kind;
+          EXPECT_EQ(c.unoccluded, 0u) << m.name << " scale " << scale << " " << isa_name(isa)
+                                      << (packets ? " packets" : " single") << kind;
+        }
       }
     }
-    std::printf("  watertight test: 0 missed expected, checked with %s packets, %s and sse4.2 single rays\n",
+    std::printf("  watertight test: 0 missed expected, with and without leaf boxes, checked with %s packets, %s and "
+                "sse4.2 single rays\n",
                 std::string(isa_name(best_isa())).c_str(), std::string(isa_name(best_isa())).c_str());
   }
   std::printf("%s: %zu rays in all; Wald's test missed %zu (%.4f%%)\n", base.name.c_str(), total_rays, wald_missed,

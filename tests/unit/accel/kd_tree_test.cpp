@@ -187,7 +187,7 @@ std::vector<std::uint32_t> refs_of(const KdTree& tree) { return {tree.prim_refs(
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
   const TriRecord* r = tree.leaf_records().data() + leaf.prim_offset();
-  return std::any_of(r, r + leaf.count, [&](const TriRecord& rec) { return rec.wald.id == tri; });
+  return std::any_of(r, r + leaf.tri_count(), [&](const TriRecord& rec) { return rec.wald.id == tri; });
 }
 
 // Bounds of the triangle clipped to `box` in double (Sutherland-Hodgman; a point on a plane
@@ -296,7 +296,7 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   const KdTree tree = KdTree::build(s.positions, s.triangles);
   for (const KdNode& n : tree.nodes()) {
     if (n.is_leaf()) {
-      EXPECT_LE(n.prim_offset() + n.count, tree.prim_refs().size());
+      EXPECT_LE(n.prim_offset() + n.tri_count(), tree.prim_refs().size());
     } else {
       EXPECT_LT(n.left() + 1, tree.nodes().size());
       EXPECT_LT(n.axis(), 3);
@@ -305,17 +305,106 @@ TEST(KdTree, NodesAreEightBytesWithAdjacentChildren) {
   EXPECT_EQ(tree.stats().nodes, tree.nodes().size());
   EXPECT_GT(tree.stats().sah_cost, 0.0);
   EXPECT_EQ(tree.stats().bytes, tree.nodes().size() * 8 + tree.prim_refs().size() * (4 + 48));
+  EXPECT_EQ(tree.stats().prim_refs + tree.stats().leaf_boxes, tree.prim_refs().size());
   // The traversal reads a leaf's records in sequence from leaf_records(): each is its
-  // reference's triangle's record, every byte of it (the padding zero).
+  // reference's triangle's record, every byte of it (the padding zero), or a LeafBox.
   ASSERT_EQ(tree.leaf_records().size(), tree.prim_refs().size());
   for (std::size_t i = 0; i < tree.prim_refs().size(); ++i) {
     const std::uint32_t index = tree.prim_refs()[i];
+    if (index == kLeafBoxRef) {
+      EXPECT_EQ(tree.leaf_records()[i].wald.k, 3u);
+      EXPECT_EQ(tree.leaf_records()[i].wald.id, kLeafBoxRef);
+      continue;
+    }
     const glm::uvec3 t = s.triangles[index];
     TriRecord expected{};
     expected.wald = make_tri_accel(s.positions[t.x], s.positions[t.y], s.positions[t.z]);
     expected.wald.id = index;
     ASSERT_LT(expected.wald.k, 3u) << "reference " << i << ": a degenerate triangle in a leaf";
     ASSERT_EQ(std::memcmp(&tree.leaf_records()[i], &expected, sizeof(TriRecord)), 0) << "reference " << i;
+  }
+}
+
+// A leaf's box (KdBuildOptions::leaf_box_saving): the slot before its first reference, and it
+// holds every part of the leaf's triangles inside the leaf's cell, or the walks would lose hits
+// there. Checked with a box on nearly every leaf, with and without clipping, in the event
+// sweep, the bit-mask stage and a bit-mask stage taking every node.
+void check_leaf_boxes(const KdTree& tree, const Soup& s, std::uint32_t index, const Aabb& cell, std::size_t& boxed,
+                      std::size_t& slots) {
+  const KdNode& node = tree.nodes()[index];
+  if (!node.is_leaf()) {
+    Aabb left = cell, right = cell;
+    left.hi[node.axis()] = node.split;
+    right.lo[node.axis()] = node.split;
+    check_leaf_boxes(tree, s, node.left(), left, boxed, slots);
+    check_leaf_boxes(tree, s, node.left() + 1, right, boxed, slots);
+    return;
+  }
+  const std::uint32_t first = node.prim_offset(), count = node.tri_count();
+  for (std::uint32_t i = 0; i < count; ++i) ASSERT_NE(tree.prim_refs()[first + i], kLeafBoxRef);
+  if (!node.has_box()) return;
+  ++boxed;
+  ASSERT_GT(count, 0u);
+  ASSERT_GE(first, 1u);
+  ASSERT_EQ(tree.prim_refs()[first - 1], kLeafBoxRef);
+  ++slots;
+  const LeafBox& b = tree.leaf_records()[first - 1].box;
+  const glm::dvec3 lo(b.lo_x, b.lo_y, b.lo_z), hi(b.hi_x, b.hi_y, b.hi_z);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const std::uint32_t tri = tree.prim_refs()[first + i];
+    const auto [tlo, thi] = clip_to_box(s, tri, cell);
+    if (tlo.x > thi.x) continue;  // a reference the bit-mask stage kept without clipping
+    for (int a = 0; a < 3; ++a) {
+      ASSERT_LE(lo[a], tlo[a]) << "triangle " << tri << " sticks out of its leaf's box, axis " << a;
+      ASSERT_GE(hi[a], thi[a]) << "triangle " << tri << " sticks out of its leaf's box, axis " << a;
+    }
+  }
+}
+
+TEST(KdTree, LeafBoxesHoldTheirTrianglesInTheCell) {
+  for (const Soup& s : {sphere_and_grid(24), random_soup(7, 5000, 0.05f), sliver_fan(13, 3000), walled_gap()}) {
+    for (const auto& [clip, mask_below] : {std::pair{true, -1}, std::pair{true, 0}, std::pair{false, -1}}) {
+      KdBuildOptions o;
+      o.clip = clip;
+      o.mask_below = mask_below;
+      o.leaf_box_saving = 1e-6f;  // a box wherever the content is smaller than the cell
+      const KdTree tree = KdTree::build(s.positions, s.triangles, o);
+      std::size_t boxed = 0, slots = 0;
+      check_leaf_boxes(tree, s, 0, tree.bounds(), boxed, slots);
+      EXPECT_GT(boxed, 0u) << "clip " << clip << ", mask below " << mask_below;
+      EXPECT_EQ(boxed, tree.stats().leaf_boxes);
+      EXPECT_EQ(slots, static_cast<std::size_t>(
+                           std::count(tree.prim_refs().begin(), tree.prim_refs().end(), kLeafBoxRef)));
+      // The same leaves and triangles as without boxes.
+      o.leaf_box_saving = 0.0f;
+      const KdTree plain = KdTree::build(s.positions, s.triangles, o);
+      EXPECT_EQ(plain.stats().leaf_boxes, 0u);
+      EXPECT_EQ(plain.stats().prim_refs, tree.stats().prim_refs);
+      ASSERT_EQ(plain.nodes().size(), tree.nodes().size());
+      for (std::size_t i = 0; i < tree.nodes().size(); ++i) {
+        ASSERT_EQ(plain.nodes()[i].is_leaf(), tree.nodes()[i].is_leaf());
+        if (tree.nodes()[i].is_leaf()) {
+          ASSERT_EQ(plain.nodes()[i].tri_count(), tree.nodes()[i].tri_count());
+        }
+      }
+    }
+  }
+}
+
+// Boxes go where the SAH's estimate of the tests they save reaches leaf_box_saving: more of
+// them at a lower threshold, none at 0.
+TEST(KdTree, LeafBoxesFollowTheirSavingThreshold) {
+  const Soup s = sphere_and_grid(24);
+  std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
+  for (const float saving : {1e-6f, 1.0f, 2.0f, 8.0f, 0.0f}) {
+    KdBuildOptions o;
+    o.leaf_box_saving = saving;
+    const KdTree tree = KdTree::build(s.positions, s.triangles, o);
+    EXPECT_LE(tree.stats().leaf_boxes, last) << "saving " << saving;
+    last = tree.stats().leaf_boxes;
+    if (saving == 0.0f) {
+      EXPECT_EQ(tree.stats().leaf_boxes, 0u);
+    }
   }
 }
 
@@ -616,6 +705,10 @@ TEST(KdTree, WatertightRecordsHoldTheVerticesAndTheSameTree) {
   for (std::size_t i = 0; i < woop.prim_refs().size(); ++i) {
     ASSERT_EQ(wald.leaf_records()[i].wald.id, woop.leaf_records()[i].wald.id);
     const std::uint32_t id = woop.prim_refs()[i];
+    if (id == kLeafBoxRef) {  // the same LeafBox in both
+      ASSERT_EQ(std::memcmp(&wald.leaf_records()[i], &woop.leaf_records()[i], sizeof(TriRecord)), 0);
+      continue;
+    }
     const TriVerts& v = woop.leaf_records()[i].watertight;
     ASSERT_EQ(v.id, id);
     ASSERT_EQ(v.k, 0u);
@@ -935,6 +1028,7 @@ TEST(KdTree, SubsetBuiltWithIdsReportsThoseIds) {
     ASSERT_FALSE(plain.prim_refs().empty());
     for (std::size_t i = 0; i < plain.prim_refs().size(); ++i) {
       const std::uint32_t index = plain.prim_refs()[i];
+      if (index == kLeafBoxRef) continue;
       ASSERT_LT(index, subset.size());
       ASSERT_EQ(plain.leaf_records()[i].wald.id, index);
       ASSERT_EQ(with_ids.leaf_records()[i].wald.id, ids[index]);

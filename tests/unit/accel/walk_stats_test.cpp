@@ -22,14 +22,20 @@ TEST(WalkStats, SumsAndPrintsPerWalk) {
   a.pushes = 3;
   a.tests = 8;
   a.test_lanes = 20;
+  a.box_tests = 3;
+  a.box_skips = 1;
+  a.box_lanes = 12;
+  a.box_kept = 6;
   WalkStats b = a;
   b += a;
   EXPECT_EQ(b.walks, 4u);
   EXPECT_EQ(b.test_lanes, 40u);
   EXPECT_EQ(b.to_string(),
-            "walks 4, lanes 8.00/walk, inner 5.00, leaves 2.00 (+0.50 empty), pushes 1.50, tests 4.00 x 2.50 lanes");
+            "walks 4, lanes 8.00/walk, inner 5.00, leaves 2.00 (+0.50 empty), pushes 1.50, tests 4.00 x 2.50 lanes, "
+            "leaf boxes 1.50 (0.50 skipped), lanes 2.00 of 4.00 kept");
   EXPECT_EQ(WalkStats{}.to_string(),
-            "walks 0, lanes 0.00/walk, inner 0.00, leaves 0.00 (+0.00 empty), pushes 0.00, tests 0.00 x 0.00 lanes");
+            "walks 0, lanes 0.00/walk, inner 0.00, leaves 0.00 (+0.00 empty), pushes 0.00, tests 0.00 x 0.00 lanes, "
+            "leaf boxes 0.00 (0.00 skipped), lanes 0.00 of 0.00 kept");
 }
 
 // Rays down the z axis through a grid of n x n unit squares (two triangles each) at z = 0,
