@@ -386,6 +386,7 @@ int run(int argc, char** argv) {
   const rtc::KdBuildStats& kd = fs->geometry->single_tree().stats();
   // --ab-kd-leaf-box-saving: the second tree, built once, untimed.
   std::shared_ptr<rtc::FrameState> fs_ab;
+  bool ab_differ = false;  // the two trees gave different answers: an error, after the figures
   if (ab_leaf_box_saving >= 0.0f) {
     rtc::KdBuildOptions o = kd_options;
     o.leaf_box_saving = ab_leaf_box_saving;
@@ -583,6 +584,7 @@ int run(int argc, char** argv) {
                      {"speed_vs_first_paired", packet_ratio},
                      {"speed_vs_first_single_paired", single_ratio},
                      {"answers_differ", differ}};
+        ab_differ = ab_differ || differ != 0;
         if (!json) {
           std::printf("  %-7s tree with --kd-leaf-box-saving %g: packets %.2f M rays/s (%.3fx the first tree's, paired), "
                       "single rays %.2f (%.3fx)%s\n",
@@ -872,6 +874,11 @@ int run(int argc, char** argv) {
       }
     }
     if (json) std::printf("%s\n", out.dump().c_str());
+  }
+  if (ab_differ) {
+    std::fprintf(stderr, "rtc-bench: error: the trees with --kd-leaf-box-saving %g and %g gave different answers\n",
+                 static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_leaf_box_saving));
+    return 4;
   }
   return 0;
 }

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Leaf boxes (KdBuildOptions::leaf_box_saving) at two values on every view of the shared scene
+# pack, in one process per view: rtc-bench builds a tree with each value and times both trees'
+# packets and single rays rep by rep (--ab-kd-leaf-box-saving), so a slow spell of the machine
+# falls on both alike, and checks that both trees give the same answers. Writes
+# tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
+# (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
+# first's, paired rep by rep).
+# Usage: tests/bench/run_leaf_box_ab.sh NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]
+#   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default)
+# RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench); AB_ISA: the
+# kernel ISA (default: rtc-bench's, the widest the CPU runs).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+[ $# -ge 1 ] || { echo "usage: $0 NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]" >&2; exit 2; }
+name=$1
+scenes=${2:-../shared/scenes}
+threads=${3:-1}
+reps=${4:-15}
+a=${5:-0}
+b=${6:-2}
+bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}
+[ -d "$scenes" ] || { echo "run_leaf_box_ab: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
+if [ -n "${RTC_BENCH:-}" ]; then
+  [ -x "$bench" ] || { echo "run_leaf_box_ab: RTC_BENCH=$bench is not an executable" >&2; exit 1; }
+elif [ ! -x "$bench" ]; then
+  cmake --preset release >/dev/null && cmake --build --preset release --target rtc-bench
+fi
+isa_args=${AB_ISA:+--isa $AB_ISA}
+out=tests/bench/results
+mkdir -p "$out"
+: > "$out/$name.txt.tmp"
+views=$(find -L "$scenes" -name 'view*.json' | sort)
+[ -n "$views" ] || { echo "run_leaf_box_ab: no view*.json under $scenes" >&2; exit 1; }
+for view in $views; do
+  echo "$bench $view --kd-leaf-box-saving $a --ab-kd-leaf-box-saving $b ($threads threads, $reps reps)" >&2
+  # shellcheck disable=SC2086  # isa_args is words
+  "$bench" "$view" --threads "$threads" --reps "$reps" --build-reps 1 --mode primary --mode shadow $isa_args \
+    --cpu-time --json --kd-leaf-box-saving "$a" --ab-kd-leaf-box-saving "$b" >> "$out/$name.txt.tmp"
+done
+mv "$out/$name.txt.tmp" "$out/$name.txt"
+python3 tests/bench/summarize_leaf_box_ab.py "$out/$name.txt" \
+  "tests/bench/run_leaf_box_ab.sh $name $scenes $threads $reps $a $b" > "$out/$name.md"
+echo "wrote $out/$name.txt and $out/$name.md" >&2

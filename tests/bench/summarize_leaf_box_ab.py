@@ -1,0 +1,43 @@
+#!/usr/bin/env python3
+"""Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
+tree's speed over the first's, paired rep by rep within one process (rtc-bench
+--ab-kd-leaf-box-saving), with the medians over the views.
+Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
+import json
+import statistics
+import sys
+
+
+def main() -> None:
+    rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]
+    if not rows:
+        sys.exit(f"{sys.argv[1]}: no results")
+    first = rows[0]
+    a, b = first["kd_leaf_box_saving"], first["ab"]["kd_leaf_box_saving"]
+    print(f"# Leaf boxes: --kd-leaf-box-saving {b:g} against {a:g}\n")
+    print(f"Regenerate with `{sys.argv[2]}`. {first['threads']} thread(s), isa {first['isa']}, "
+          f"{first['reps']} reps, process CPU time. Each view is one process: both trees are built, then "
+          "their packets and single rays take turns rep by rep; a ratio is the median over the reps of "
+          "the first tree's time over the second's (above 1: the second is faster). `differ`: rays whose "
+          "answers differ between the trees (must be 0).\n")
+    print(f"| scene | tris | mode | boxes ({b:g}) | packets {a:g} | packets {b:g} | ratio | single {a:g} | "
+          f"single {b:g} | ratio | differ |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    ratios = {"primary": ([], []), "shadow": ([], [])}
+    for r in rows:
+        ab = r["ab"]
+        ratios[r["mode"]][0].append(ab["speed_vs_first_paired"])
+        ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
+        print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {ab['kd_leaf_boxes']:,} | "
+              f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
+              f"{r['mrays_per_s_single']:.2f} | {ab['mrays_per_s_single']:.2f} | "
+              f"{ab['speed_vs_first_single_paired']:.3f} | {ab['answers_differ']} |")
+    print()
+    for mode, (p, s) in ratios.items():
+        if p:
+            print(f"- {mode}: packets median {statistics.median(p):.3f} (views {min(p):.3f}-{max(p):.3f}), "
+                  f"single rays median {statistics.median(s):.3f} ({min(s):.3f}-{max(s):.3f})")
+
+
+if __name__ == "__main__":
+    main()
