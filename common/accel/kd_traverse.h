@@ -617,12 +617,16 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const std::uint32_t count = node.tri_count();
       stats.leaf(count);
       if (node.has_box()) {
-        // The leaf's LeafBox: lanes whose segment misses it cannot hit its triangles here.
-        // The same slab test as the tree's box above (NaN keeps the segment), with the
-        // conservative reach, so a lane is dropped only when it surely misses.
+        // The leaf's LeafBox: a lane whose ray misses it cannot hit the leaf's triangles
+        // there. The whole ray [t_min, t_max] is tested, not the segment in this leaf: the box
+        // lies in the cell (but for its widening), so that culls as much, and a hit the float
+        // test accepts a rounding error outside a triangle, even outside this cell, is still
+        // found here wherever it lies in the widened box. The same slab test as the tree's box
+        // above (NaN keeps the interval), with the conservative reach, so a lane is dropped
+        // only when it surely misses.
         const LeafBox& b = leaf[-1].box;
         const float lo[3] = {b.lo_x, b.lo_y, b.lo_z}, hi[3] = {b.hi_x, b.hi_y, b.hi_z};
-        vfloat<N> enter = near, leave = far;
+        vfloat<N> enter = ray.t_min, leave = ray.t_max;
         for (int axis = 0; axis < 3; ++axis) {
           const bool negative = (sign_bits >> axis) & 1u;
           const vfloat<N> t_entry = (vfloat<N>(negative ? hi[axis] : lo[axis]) - ray.org[axis]) * inv_dir[axis];
@@ -631,8 +635,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
           leave = min(t_exit, leave);
         }
         const vbool<N> inside = active & (enter <= leave * vfloat<N>(1.0f + 0x1p-20f));
-        stats.box(static_cast<std::uint32_t>(std::popcount(bits(active))),
-                  static_cast<std::uint32_t>(std::popcount(bits(inside))));
+        if constexpr (kWalkStats) {
+          stats.box(static_cast<std::uint32_t>(std::popcount(bits(active))),
+                    static_cast<std::uint32_t>(std::popcount(bits(inside))));
+        }
         if (none(inside)) goto pop;
         active = inside;
       }

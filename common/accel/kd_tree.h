@@ -105,9 +105,9 @@ static_assert(offsetof(TriVerts, k) == offsetof(TriAccel, k) && offsetof(TriVert
 
 /// The slot before a leaf's first triangle record in leaves where it pays
 /// (KdBuildOptions::leaf_box_saving; KdNode::has_box()): a box around the parts of the leaf's
-/// triangles inside its cell, slightly widened (KdTree::build). A ray whose segment in the leaf
-/// misses it hits none of them there, and the walks skip their tests. Layout-compatible with TriAccel (k = 3, id = kLeafBoxRef),
-/// so read as a triangle it is a degenerate one.
+/// triangles inside its cell, slightly widened (KdTree::build). A ray that misses it hits none
+/// of them there, and the walks skip their tests. Layout-compatible with TriAccel, so `k` (3)
+/// and `id` (kLeafBoxRef) read alike in every slot; it is never tested as a triangle.
 struct alignas(16) LeafBox {
   float lo_x, lo_y, lo_z;
   std::uint32_t k;

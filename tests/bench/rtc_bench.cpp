@@ -876,7 +876,9 @@ int run(int argc, char** argv) {
     if (json) std::printf("%s\n", out.dump().c_str());
   }
   if (ab_differ) {
-    std::fprintf(stderr, "rtc-bench: error: the trees with --kd-leaf-box-saving %g and %g gave different answers\n",
+    std::fprintf(stderr,
+                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g the answers differ (between the trees, or "
+                 "between packets and single rays)\n",
                  static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_leaf_box_saving));
     return 4;
   }

@@ -30,16 +30,17 @@ def main(path):
           "single ray: live lanes at the start, inner-node steps, leaves with triangles entered (+ empty leaves "
           "entered; packets pass marked empty children by), subtrees pushed, triangle tests (a leaf tested side "
           "by side for one lane counts each of its triangles) and the lanes live in a test. 'lone' is the share "
-          "of a packet pass's rays walked alone (octant groups of one lane). Shadow rays are walked from "
+          "of a packet pass's rays walked alone (octant groups of one lane). 'leaf boxes': the packets' leaf box "
+          "tests per walk (KdBuildOptions::leaf_box_saving), in brackets those that let no lane through. Shadow rays are walked from "
           "their origin (`--shadow-order near`) and from the light's end (`far`), each order fixed, so "
           "every count is the same in every run (`auto` picks per run of packets by timings).\n")
     tables = (("primary", None, "primary rays"), ("shadow", "near", "shadow rays from the origin (near)"),
               ("shadow", "far", "shadow rays from the light's end (far)"))
     for mode, order, title in tables:
         print(f"## {title}\n")
-        print("| scene | tris | rays | packet lanes | inner | leaves | pushes | tests | lanes/test | lone | "
+        print("| scene | tris | rays | packet lanes | inner | leaves | pushes | tests | lanes/test | leaf boxes | lone | "
               "single inner | single leaves | single tests | inner: packet / lanes x single |")
-        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in rows:
             if r.get("mode") != mode or (order is not None and r.get("shadow_order") != order):
                 continue
@@ -49,8 +50,10 @@ def main(path):
             lanes_total = p["lanes"] + lone["lanes"]
             # The packet's inner steps against what its lanes would take one by one.
             ratio = per(per(p["inner"], p["walks"]), per(p["lanes"], p["walks"]) * per(s["inner"], s["walks"]))
+            boxes = (f"{per(p.get('box_tests', 0), p['walks']):.2f} "
+                     f"({per(p.get('box_skips', 0), p['walks']):.2f})")
             print(f"| {r['scene']} | {r['triangles']:,} | {r['rays']:,} | {c[0]} | {c[1]} | {c[2]} | {c[3]} | {c[4]} | "
-                  f"{c[5]} | {100.0 * per(lone['lanes'], lanes_total):.1f}% | {sc[1]} | {sc[2]} | {sc[4]} | "
+                  f"{c[5]} | {boxes} | {100.0 * per(lone['lanes'], lanes_total):.1f}% | {sc[1]} | {sc[2]} | {sc[4]} | "
                   f"{ratio:.2f} |")
         print()
 
