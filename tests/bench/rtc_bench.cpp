@@ -300,6 +300,10 @@ int run(int argc, char** argv) {
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
+  if (ab_leaf_box_saving >= 0.0f &&
+      std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
+    throw rtc::Error("--ab-kd-leaf-box-saving times primary and shadow rays: give --mode primary or --mode shadow");
+  }
 
   std::filesystem::path path(scene_path);
   if (!scene_path.empty() && std::filesystem::is_directory(path)) path /= "view.json";
