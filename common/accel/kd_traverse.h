@@ -472,6 +472,21 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
   }
 }
 
+/// Narrows each lane's [near, far] to the part of its ray inside the box [lo, hi] (the slab
+/// test), for rays that run towards -a where bit a of `sign_bits` is set. A slab distance of
+/// NaN (an origin on a face, a ray parallel to it) leaves the interval as it is.
+template <int N>
+inline void clip_to_box(const glm::vec3& lo, const glm::vec3& hi, std::uint32_t sign_bits, const RayPacket<N>& ray,
+                        const PacketVec3<N>& inv_dir, vfloat<N>& near, vfloat<N>& far) {
+  for (int axis = 0; axis < 3; ++axis) {
+    const bool negative = (sign_bits >> axis) & 1u;
+    const vfloat<N> t_entry = (vfloat<N>(negative ? hi[axis] : lo[axis]) - ray.org[axis]) * inv_dir[axis];
+    const vfloat<N> t_exit = (vfloat<N>(negative ? lo[axis] : hi[axis]) - ray.org[axis]) * inv_dir[axis];
+    near = max(t_entry, near);  // NaN keeps near
+    far = min(t_exit, far);
+  }
+}
+
 /// Traverses the tree with the active lanes, which must share the sign of every direction
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
@@ -510,15 +525,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     far = select(hit.prim > vint<N>(-1), min(far, hit_reach(hit.t)), far);
   }
   for (int axis = 0; axis < 3; ++axis) {
-    const bool negative = sign_bit(ray.dir[axis]).lane(lead);
-    sign_bits |= static_cast<std::uint32_t>(negative) << axis;
-    const float entry = negative ? box.hi[axis] : box.lo[axis];
-    const float exit = negative ? box.lo[axis] : box.hi[axis];
-    const vfloat<N> t_entry = (vfloat<N>(entry) - ray.org[axis]) * inv_dir[axis];
-    const vfloat<N> t_exit = (vfloat<N>(exit) - ray.org[axis]) * inv_dir[axis];
-    near = max(t_entry, near);  // NaN (origin on the face, parallel ray) keeps near
-    far = min(t_exit, far);
+    sign_bits |= static_cast<std::uint32_t>(sign_bit(ray.dir[axis]).lane(lead)) << axis;
   }
+  clip_to_box(box.lo, box.hi, sign_bits, ray, inv_dir, near, far);
   // A watertight test finds a hit on a shared edge or vertex only in a leaf that holds one of
   // the triangles there, and a triangle that merely touches a split plane at a vertex is
   // referenced on one side only. A ray through such a vertex crosses three planes at nearly
@@ -625,15 +634,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         // above (NaN keeps the interval), with the conservative reach, so a lane is dropped
         // only when it surely misses.
         const LeafBox& b = leaf[-1].box;
-        const float lo[3] = {b.lo_x, b.lo_y, b.lo_z}, hi[3] = {b.hi_x, b.hi_y, b.hi_z};
         vfloat<N> enter = ray.t_min, leave = ray.t_max;
-        for (int axis = 0; axis < 3; ++axis) {
-          const bool negative = (sign_bits >> axis) & 1u;
-          const vfloat<N> t_entry = (vfloat<N>(negative ? hi[axis] : lo[axis]) - ray.org[axis]) * inv_dir[axis];
-          const vfloat<N> t_exit = (vfloat<N>(negative ? lo[axis] : hi[axis]) - ray.org[axis]) * inv_dir[axis];
-          enter = max(t_entry, enter);
-          leave = min(t_exit, leave);
-        }
+        clip_to_box(glm::vec3(b.lo_x, b.lo_y, b.lo_z), glm::vec3(b.hi_x, b.hi_y, b.hi_z), sign_bits, ray, inv_dir, enter,
+                    leave);
         const vbool<N> inside = active & (enter <= leave * vfloat<N>(1.0f + 0x1p-20f));
         if constexpr (kWalkStats) {
           stats.box(static_cast<std::uint32_t>(std::popcount(bits(active))),

@@ -7,7 +7,6 @@
 // 2008, section 4.3), without further clipping. Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -2281,12 +2280,6 @@ struct Placer {
       };
       nodes[index] = relocate(local[0]);
       for (std::size_t i = 1; i < local.size(); ++i) nodes[node_base + i - 1] = relocate(local[i]);
-      if (t.block.boxes.empty()) {
-        if (!t.block.refs.empty()) {
-          std::memcpy(refs + ref_base, t.block.refs.data(), t.block.refs.size() * sizeof(std::uint32_t));
-        }
-        return;
-      }
       for (std::size_t i = 0; i < t.block.refs.size(); ++i) {
         const std::uint32_t r = t.block.refs[i];
         if ((r & Block::kBoxSlot) == 0) {
@@ -2319,6 +2312,7 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
   if (t.axis < 0) {
     stats.leaves += t.block.leaves;
     stats.empty_leaves += t.block.empty_leaves;
+    stats.leaf_boxes += t.block.boxes.size();
     stats.max_depth = std::max(stats.max_depth, t.block.max_depth);
     cost_area += t.block.cost_area;
     return;
@@ -2500,22 +2494,14 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
-  std::atomic<std::uint64_t> boxes{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
-    std::uint64_t n = 0;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const std::uint32_t r = tree.prim_refs_[i];
-      if (r != kLeafBoxRef) {
-        tree.leaf_records_[i] = records[r];
-      } else {
-        ++n;
-      }
+      if (r != kLeafBoxRef) tree.leaf_records_[i] = records[r];  // the placer wrote the boxes
     }
-    boxes += n;
   });
 
   tree.stats_.nodes = tree.nodes_.size();
-  tree.stats_.leaf_boxes = boxes;
   tree.stats_.prim_refs = tree.prim_refs_.size() - tree.stats_.leaf_boxes;
   tree.stats_.bytes = tree.nodes_.size() * sizeof(KdNode) + tree.prim_refs_.size() * sizeof(std::uint32_t) +
                       tree.leaf_records_.size() * sizeof(TriRecord);

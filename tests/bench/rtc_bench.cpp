@@ -581,10 +581,12 @@ int run(int argc, char** argv) {
         // Speed of the second tree over the first's, paired round by round (time a / time b).
         const double packet_ratio = rtc::bench::paired_ratio(times[0], times[first_ab]);
         const double single_ratio = rtc::bench::paired_ratio(times[1], times[first_ab + 1]);
+        const double mrays = rays / rtc::bench::median_of(times[first_ab]) / 1e3;
+        const double mrays_single = rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3;
         out["ab"] = {{"kd_leaf_box_saving", ab_leaf_box_saving},
                      {"kd_leaf_boxes", kd_ab.leaf_boxes},
-                     {"mrays_per_s", rays / rtc::bench::median_of(times[first_ab]) / 1e3},
-                     {"mrays_per_s_single", rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3},
+                     {"mrays_per_s", mrays},
+                     {"mrays_per_s_single", mrays_single},
                      {"speed_vs_first_paired", packet_ratio},
                      {"speed_vs_first_single_paired", single_ratio},
                      {"answers_differ", differ}};
@@ -592,8 +594,8 @@ int run(int argc, char** argv) {
         if (!json) {
           std::printf("  %-7s tree with --kd-leaf-box-saving %g: packets %.2f M rays/s (%.3fx the first tree's, paired), "
                       "single rays %.2f (%.3fx)%s\n",
-                      mode.c_str(), static_cast<double>(ab_leaf_box_saving), rays / rtc::bench::median_of(times[first_ab]) / 1e3, packet_ratio,
-                      rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3, single_ratio,
+                      mode.c_str(), static_cast<double>(ab_leaf_box_saving), mrays, packet_ratio, mrays_single,
+                      single_ratio,
                       differ != 0 ? ", ANSWERS DIFFER" : "");
         }
       }
