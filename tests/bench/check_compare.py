@@ -11,24 +11,17 @@ with 2 threads and asserts what must hold whatever the machine's speed:
 usage: check_compare.py RTC_BENCH OUT_DIR
 """
 import json
-import math
 import os
 import shutil
 import subprocess
 import sys
 
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}")
+from bench_checks import check, failures, finite_positive
 
 
 def positive(row, key):
     value = row.get(key)
-    check(isinstance(value, (int, float)) and math.isfinite(value) and value > 0, f"{row.get('mode')}: {key} = {value}")
+    check(finite_positive(value), f"{row.get('mode')}: {key} = {value}")
 
 
 def main(bench, out_dir):

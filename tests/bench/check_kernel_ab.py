@@ -19,18 +19,9 @@ import statistics
 import subprocess
 import sys
 
-failures = []
+from bench_checks import check, failures, finite_positive
+
 KERNELS = ("general", "specialised", "general_skip", "specialised_skip")
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}")
-
-
-def finite_positive(value):
-    return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
 
 
 def main(bench):

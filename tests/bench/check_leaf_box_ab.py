@@ -10,23 +10,12 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
 usage: check_leaf_box_ab.py RTC_BENCH
 """
 import json
-import math
 import os
 import subprocess
 import sys
 import tempfile
 
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}")
-
-
-def finite_positive(value):
-    return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+from bench_checks import check, failures, finite_positive
 
 
 def main(bench):

@@ -126,13 +126,29 @@ TEST(StressRays, AxisParallelAndZeroComponentsAgreeWithBruteForce) {
   run(rays, "axis-parallel / zero components");
 }
 
+// A direction for a ray from an origin on a plane across axis `a`. `in_plane`: lying in the
+// plane, +0 along the axis with `variant`, -0 without (a slab distance 0 * inf = NaN);
+// otherwise along the axis with `variant`, else random (across the plane).
+glm::vec3 plane_ray_dir(std::mt19937& rng, int a, bool in_plane, bool variant) {
+  std::uniform_real_distribution<float> d(-1.0f, 1.0f);
+  glm::vec3 dir(d(rng), d(rng), d(rng));
+  if (in_plane) {
+    dir[a] = variant ? 0.0f : -0.0f;
+  } else if (variant) {
+    dir = glm::vec3(0.0f);
+    dir[a] = d(rng) < 0.0f ? -1.0f : 1.0f;
+  }
+  if (dir == glm::vec3(0.0f)) dir[(a + 1) % 3] = 1.0f;
+  return dir;
+}
+
 // Origins exactly on each inner node's plane (inside the node's region or not). `in_plane`:
 // directions lying in the plane (+0 or -0 along the axis: t_split = 0 * inf = NaN, the lane
 // visits both children with its whole segment); otherwise across it or along the axis.
 std::vector<RayQuery> split_plane_rays(std::uint32_t seed, bool in_plane) {
   const Fixture& f = fixture();
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-2.2f, 2.2f), d(-1.0f, 1.0f);
+  std::uniform_real_distribution<float> u(-2.2f, 2.2f);
   std::vector<RayQuery> rays;
   for (const KdNode& n : f.tree.nodes()) {
     if (n.is_leaf()) continue;
@@ -141,14 +157,7 @@ std::vector<RayQuery> split_plane_rays(std::uint32_t seed, bool in_plane) {
       RayQuery r;
       r.org = glm::vec3(u(rng), u(rng), u(rng));
       r.org[a] = n.split;
-      r.dir = glm::vec3(d(rng), d(rng), d(rng));
-      if (in_plane) {
-        r.dir[a] = kind == 0 ? 0.0f : -0.0f;
-      } else if (kind == 0) {
-        r.dir = glm::vec3(0.0f);
-        r.dir[a] = d(rng) < 0.0f ? -1.0f : 1.0f;
-      }
-      if (r.dir == glm::vec3(0.0f)) r.dir[(a + 1) % 3] = 1.0f;
+      r.dir = plane_ray_dir(rng, a, in_plane, kind == 0);
       rays.push_back(r);
     }
   }
@@ -172,7 +181,7 @@ TEST(StressRays, OriginsOnSplitPlanesLyingInThePlaneAgreeWithBruteForce) {
 std::vector<RayQuery> leaf_box_face_rays(std::uint32_t seed, bool in_plane) {
   const Fixture& f = fixture();
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> d(-1.0f, 1.0f), u(0.0f, 1.0f);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
   std::vector<RayQuery> rays;
   for (std::size_t i = 0; i < f.boxed.prim_refs().size(); ++i) {
     if (f.boxed.prim_refs()[i] != kLeafBoxRef) continue;
@@ -184,14 +193,8 @@ std::vector<RayQuery> leaf_box_face_rays(std::uint32_t seed, bool in_plane) {
     const glm::vec3 spread = (hi - lo) * 1.4f;
     r.org = lo - (hi - lo) * 0.2f + glm::vec3(u(rng) * spread.x, u(rng) * spread.y, u(rng) * spread.z);
     r.org[a] = rng() % 2 ? lo[a] : hi[a];
-    r.dir = glm::vec3(d(rng), d(rng), d(rng));
-    if (in_plane) {
-      r.dir[a] = rng() % 2 ? 0.0f : -0.0f;
-    } else if (rng() % 2) {
-      r.dir = glm::vec3(0.0f);
-      r.dir[a] = d(rng) < 0.0f ? -1.0f : 1.0f;
-    }
-    if (r.dir == glm::vec3(0.0f)) r.dir[(a + 1) % 3] = 1.0f;
+    const bool variant = rng() % 2;
+    r.dir = plane_ray_dir(rng, a, in_plane, variant);
     rays.push_back(r);
   }
   return rays;
