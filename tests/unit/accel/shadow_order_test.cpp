@@ -51,34 +51,44 @@ TEST(ShadowOrder, FixedOrdersAndAutoWithoutTallyTimeNothing) {
 }
 
 // Runs alternate until both orders have kMinRays timed rays, then the faster order is taken by
-// all runs but every kExplore-th; the warm-up packets of a run are never timed.
+// all runs but every kExplore-th, or every kExploreRare-th where the slower order's mean is
+// kApart times the faster one's or more; the warm-up packets of a run are never timed.
 TEST(ShadowOrder, AutoTriesBothThenTakesTheFasterAndKeepsExploring) {
-  for (const bool far_faster : {false, true}) {
-    SCOPED_TRACE(far_faster ? "far faster" : "near faster");
-    const std::uint64_t near_ticks = far_faster ? 300 : 100, far_ticks = far_faster ? 100 : 300;
-    ShadowOrderTally tally;
-    // 64 packets of 8 rays, 60 timed: 480 rays per run.
-    int runs = 0;
-    int far_runs = 0;
-    while (tally.rays[0].load() < ShadowOrderChooser::kMinRays || tally.rays[1].load() < ShadowOrderChooser::kMinRays) {
-      const bool far = run(tally, 64, near_ticks, far_ticks);
-      EXPECT_EQ(far, runs % 2 == 1) << "run " << runs;  // near, far, near, ...
-      far_runs += far ? 1 : 0;
-      ++runs;
-      ASSERT_LT(runs, 100);
+  struct Case {
+    std::uint64_t fast, slow;  // ticks per ray
+    std::uint32_t every;       // exploring runs
+  };
+  for (const Case c : {Case{100, 300, ShadowOrderChooser::kExploreRare}, Case{100, 110, ShadowOrderChooser::kExplore},
+                       Case{100, 125, ShadowOrderChooser::kExploreRare}, Case{100, 124, ShadowOrderChooser::kExplore}}) {
+    for (const bool far_faster : {false, true}) {
+      SCOPED_TRACE(::testing::Message() << (far_faster ? "far faster" : "near faster") << ", " << c.fast << " against "
+                                        << c.slow << " ticks per ray");
+      const std::uint64_t near_ticks = far_faster ? c.slow : c.fast, far_ticks = far_faster ? c.fast : c.slow;
+      ShadowOrderTally tally;
+      // 64 packets of 8 rays, 60 timed: 480 rays per run.
+      int runs = 0;
+      int far_runs = 0;
+      while (tally.rays[0].load() < ShadowOrderChooser::kMinRays ||
+             tally.rays[1].load() < ShadowOrderChooser::kMinRays) {
+        const bool far = run(tally, 64, near_ticks, far_ticks);
+        EXPECT_EQ(far, runs % 2 == 1) << "run " << runs;  // near, far, near, ...
+        far_runs += far ? 1 : 0;
+        ++runs;
+        ASSERT_LT(runs, 100);
+      }
+      EXPECT_EQ(tally.rays[0].load(), static_cast<std::uint64_t>(runs - far_runs) * 60 * 8);
+      EXPECT_EQ(tally.ticks[0].load(), tally.rays[0].load() * near_ticks);
+      EXPECT_EQ(tally.ticks[1].load(), tally.rays[1].load() * far_ticks);
+      int explored = 0;
+      for (int k = 0; k < 4 * static_cast<int>(c.every); ++k) {
+        const std::uint32_t n = tally.runs.load();
+        const bool far = run(tally, 64, near_ticks, far_ticks);
+        const bool explore = n % c.every == c.every - 1;
+        EXPECT_EQ(far, explore ? !far_faster : far_faster) << "run " << n;
+        explored += explore ? 1 : 0;
+      }
+      EXPECT_EQ(explored, 4);
     }
-    EXPECT_EQ(tally.rays[0].load(), static_cast<std::uint64_t>(runs - far_runs) * 60 * 8);
-    EXPECT_EQ(tally.ticks[0].load(), tally.rays[0].load() * near_ticks);
-    EXPECT_EQ(tally.ticks[1].load(), tally.rays[1].load() * far_ticks);
-    int explored = 0;
-    for (int k = 0; k < 4 * static_cast<int>(ShadowOrderChooser::kExplore); ++k) {
-      const std::uint32_t n = tally.runs.load();
-      const bool far = run(tally, 64, near_ticks, far_ticks);
-      const bool explore = n % ShadowOrderChooser::kExplore == ShadowOrderChooser::kExplore - 1;
-      EXPECT_EQ(far, explore ? !far_faster : far_faster) << "run " << n;
-      explored += explore ? 1 : 0;
-    }
-    EXPECT_EQ(explored, 4);
   }
 }
 
@@ -120,7 +130,11 @@ TEST(ShadowOrder, WhichPacketsAreTimed) {
   }
   EXPECT_EQ(timed, static_cast<int>((40 - ShadowOrderChooser::kWarmUp + ShadowOrderChooser::kTimeEvery - 1) /
                                     ShadowOrderChooser::kTimeEvery));
+  // The slower order takes twice as long: only every kExploreRare-th run explores.
   tally.runs = ShadowOrderChooser::kExplore - 1;
+  ShadowOrderChooser not_exploring(ShadowOrder::Auto, &tally);
+  EXPECT_FALSE(not_exploring.next());
+  tally.runs = ShadowOrderChooser::kExploreRare - 1;
   ShadowOrderChooser explorer(ShadowOrder::Auto, &tally);
   for (std::uint32_t i = 0; i < 40; ++i) {
     EXPECT_TRUE(explorer.next());
