@@ -51,7 +51,8 @@ struct TileKernelOptions {
   /// (ShadowOrderChooser).
   ShadowOrder shadow_order = ShadowOrder::Auto;
   /// Optional, with Auto: tallies shared by tiles and threads, [2 * light + (1 for the shadow
-  /// rays of mirror bounces)]; lights past `shadow_tally_count / 2` learn within the tile only.
+  /// rays of mirror bounces)]; lights past `shadow_tally_count / 2` have no tally, so their
+  /// walks start near-first, untimed (ShadowOrderChooser without a tally).
   ShadowOrderTally* shadow_tally = nullptr;
   std::size_t shadow_tally_count = 0;
 };

@@ -92,6 +92,35 @@ TEST(ShadowOrder, AutoTriesBothThenTakesTheFasterAndKeepsExploring) {
   }
 }
 
+// The interval follows the order a run takes after any switch: with the preferred order (far)
+// twice as slow as the other, run 15 switches to near, against which far is kApart apart, so it
+// does not explore (measured against the stale preference, near would be 0.5x, not apart, and
+// run 15 would explore, taking far).
+TEST(ShadowOrder, ExploringIntervalFollowsTheOrderAfterASwitch) {
+  ShadowOrderTally tally;
+  tally.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
+  tally.rays[0] = ShadowOrderChooser::kMinRays;
+  tally.ticks[1] = 200 * ShadowOrderChooser::kMinRays;
+  tally.rays[1] = ShadowOrderChooser::kMinRays;
+  tally.far_preferred = true;
+  tally.runs = ShadowOrderChooser::kExplore - 1;
+  ShadowOrderChooser c(ShadowOrder::Auto, &tally);
+  EXPECT_FALSE(c.next());
+  EXPECT_FALSE(tally.far_preferred.load());
+  c.flush();
+  // Orders closer than kApart: the same run number explores.
+  ShadowOrderTally close;
+  close.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
+  close.rays[0] = ShadowOrderChooser::kMinRays;
+  close.ticks[1] = 120 * ShadowOrderChooser::kMinRays;
+  close.rays[1] = ShadowOrderChooser::kMinRays;
+  close.far_preferred = true;
+  close.runs = ShadowOrderChooser::kExplore - 1;
+  ShadowOrderChooser d(ShadowOrder::Auto, &close);
+  EXPECT_TRUE(d.next());  // switched to near, then exploring: far
+  EXPECT_FALSE(close.far_preferred.load());
+}
+
 // An order within kMargin of the preferred one does not take over (switching costs a warm-up);
 // one clearly faster does.
 TEST(ShadowOrder, KeepsThePreferredOrderUnlessTheOtherIsClearlyFaster) {
