@@ -148,19 +148,21 @@ class ShadowOrderChooser {
       time_every_ = 1;
       return;
     }
-    // Mean ticks per ray compared without division: the other order's t / r below
-    // (1 - kMargin) times the preferred one's.
+    // Whether order a's mean ticks per ray is below f times order b's, compared without
+    // division.
+    const auto mean_below = [&](int a, int b, double f) {
+      return static_cast<double>(ticks[a]) * static_cast<double>(rays[b]) <
+             f * static_cast<double>(ticks[b]) * static_cast<double>(rays[a]);
+    };
     const bool far = shared_->far_preferred.load(std::memory_order_relaxed);
-    const int p = far ? 1 : 0, o = 1 - p;
-    const bool other_faster = static_cast<double>(ticks[o]) * static_cast<double>(rays[p]) <
-                              (1.0 - kMargin) * static_cast<double>(ticks[p]) * static_cast<double>(rays[o]);
+    const int p = far ? 1 : 0;
+    const bool other_faster = mean_below(1 - p, p, 1.0 - kMargin);
     const bool preferred = other_faster ? !far : far;
     if (other_faster) shared_->far_preferred.store(preferred, std::memory_order_relaxed);
     // The other order's mean at least kApart times the preferred one's (the preferred order
     // as it stands now, after any switch above).
-    const int q = preferred ? 1 : 0, r = 1 - q;
-    const bool apart = static_cast<double>(ticks[r]) * static_cast<double>(rays[q]) >=
-                       kApart * static_cast<double>(ticks[q]) * static_cast<double>(rays[r]);
+    const int q = preferred ? 1 : 0;
+    const bool apart = !mean_below(1 - q, q, kApart);
     const std::uint32_t every = apart ? kExploreRare : kExplore;
     const bool explore = n % every == every - 1;
     far_first_ = explore ? !preferred : preferred;

@@ -24,6 +24,18 @@ bool run(ShadowOrderTally& tally, int packets, std::uint64_t near_ticks, std::ui
   return c.far_first();
 }
 
+// A tally past the alternating start: kMinRays rays in each order at the given ticks per ray,
+// `far_preferred`, and `runs` runs started.
+void settled(ShadowOrderTally& tally, std::uint64_t near_ticks, std::uint64_t far_ticks, bool far_preferred = false,
+             std::uint32_t runs = 0) {
+  tally.ticks[0] = near_ticks * ShadowOrderChooser::kMinRays;
+  tally.rays[0] = ShadowOrderChooser::kMinRays;
+  tally.ticks[1] = far_ticks * ShadowOrderChooser::kMinRays;
+  tally.rays[1] = ShadowOrderChooser::kMinRays;
+  tally.far_preferred = far_preferred;
+  tally.runs = runs;
+}
+
 TEST(ShadowOrder, NamesParseAndBadTextIsAnError) {
   for (const ShadowOrder o : {ShadowOrder::Auto, ShadowOrder::Near, ShadowOrder::Far}) {
     EXPECT_EQ(parse_shadow_order(shadow_order_name(o)), o);
@@ -98,24 +110,14 @@ TEST(ShadowOrder, AutoTriesBothThenTakesTheFasterAndKeepsExploring) {
 // run 15 would explore, taking far).
 TEST(ShadowOrder, ExploringIntervalFollowsTheOrderAfterASwitch) {
   ShadowOrderTally tally;
-  tally.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
-  tally.rays[0] = ShadowOrderChooser::kMinRays;
-  tally.ticks[1] = 200 * ShadowOrderChooser::kMinRays;
-  tally.rays[1] = ShadowOrderChooser::kMinRays;
-  tally.far_preferred = true;
-  tally.runs = ShadowOrderChooser::kExplore - 1;
+  settled(tally, 100, 200, true, ShadowOrderChooser::kExplore - 1);
   ShadowOrderChooser c(ShadowOrder::Auto, &tally);
   EXPECT_FALSE(c.next());
   EXPECT_FALSE(tally.far_preferred.load());
   c.flush();
   // Orders closer than kApart: the same run number explores.
   ShadowOrderTally close;
-  close.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
-  close.rays[0] = ShadowOrderChooser::kMinRays;
-  close.ticks[1] = 120 * ShadowOrderChooser::kMinRays;
-  close.rays[1] = ShadowOrderChooser::kMinRays;
-  close.far_preferred = true;
-  close.runs = ShadowOrderChooser::kExplore - 1;
+  settled(close, 100, 120, true, ShadowOrderChooser::kExplore - 1);
   ShadowOrderChooser d(ShadowOrder::Auto, &close);
   EXPECT_TRUE(d.next());  // switched to near, then exploring: far
   EXPECT_FALSE(close.far_preferred.load());
@@ -144,10 +146,7 @@ TEST(ShadowOrder, KeepsThePreferredOrderUnlessTheOtherIsClearlyFaster) {
 // run, and every run before both orders have kMinRays, times every packet after it.
 TEST(ShadowOrder, WhichPacketsAreTimed) {
   ShadowOrderTally tally;
-  tally.ticks[0] = 100 * ShadowOrderChooser::kMinRays;
-  tally.rays[0] = ShadowOrderChooser::kMinRays;
-  tally.ticks[1] = 200 * ShadowOrderChooser::kMinRays;
-  tally.rays[1] = ShadowOrderChooser::kMinRays;
+  settled(tally, 100, 200);
   ShadowOrderChooser faster(ShadowOrder::Auto, &tally);  // run 0: near, the faster
   int timed = 0;
   for (std::uint32_t i = 0; i < 40; ++i) {
