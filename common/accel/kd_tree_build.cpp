@@ -1681,7 +1681,9 @@ class BlockBuilder {
     out_.max_depth = std::max(out_.max_depth, depth);
     const float area = scaled_area(box, ctx_.sah_scale);
     SplitChoice split;
-    if (depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
+    const bool may_split = depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f;
+    if (may_split) split = wide_empty_cut(off, len, count, box, area);
+    if (may_split && split.axis < 0) {
       const float inv_area = 1.0f / area;
       for (int axis = 0; axis < 3; ++axis) {
         // The earliest axis wins a tie.
@@ -1896,6 +1898,37 @@ class BlockBuilder {
     if (ev[0].pos > p || (ev[0].pos == p && !(planar_left && planar_at_p(0, 1)))) return 1;
     if (ev[n - 1].pos < p || (ev[n - 1].pos == p && !(!planar_left && planar_at_p(n - 1, -1)))) return 0;
     return -1;
+  }
+
+  // KdBuildOptions::empty_cut: the plane at the references' bound that leaves the widest empty
+  // gap (as a fraction of the cell's extent; the earliest axis, then the lower side, wins a
+  // tie) where that gap is at least empty_cut and the cut's SAH cost is below a leaf's. The
+  // first and last events of each axis's sorted list are the references' bounds there. Planar
+  // references at the plane stay with the rest (planar_left: true at the upper bound), so every
+  // reference goes to one side and cut_off_empty takes the cut. No cut: axis -1.
+  [[nodiscard]] SplitChoice wide_empty_cut(const std::size_t off[3], const std::size_t len[3], std::size_t count,
+                                           const Aabb& box, float area) const {
+    const KdBuildOptions& options = ctx_.options;
+    if (!(options.empty_cut <= 1.0f)) return SplitChoice{};
+    float widest = 0.0f;
+    int axis = -1;
+    bool upper = false;
+    for (int a = 0; a < 3; ++a) {
+      const float extent = box.hi[a] - box.lo[a];
+      if (len[a] == 0 || !(extent > 0.0f)) continue;
+      const Event* ev = s_.arena.at(off[a]);
+      const float below = (ev[0].pos - box.lo[a]) / extent, above = (box.hi[a] - ev[len[a] - 1].pos) / extent;
+      if (below > widest) widest = below, axis = a, upper = false;
+      if (above > widest) widest = above, axis = a, upper = true;
+    }
+    if (axis < 0 || !(widest >= options.empty_cut)) return SplitChoice{};
+    const Event* ev = s_.arena.at(off[axis]);
+    const float p = upper ? ev[len[axis] - 1].pos : ev[0].pos;
+    if (!(p > box.lo[axis] && p < box.hi[axis])) return SplitChoice{};
+    const SahAxis sah(options, box, axis, 1.0f / area, ctx_.sah_scale);
+    const float cost = upper ? sah.cost(p, count, 0) : sah.cost(p, 0, count);
+    if (!(cost < options.intersection_cost * static_cast<float>(count))) return SplitChoice{};
+    return SplitChoice{axis, p, upper, cost};
   }
 
   // A split that cuts off empty space: the full child holds every reference with the bounds it

@@ -6,6 +6,8 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - the first tree has no boxes, the second has some, and the two gave the same answers;
   - both trees' throughputs and the paired ratios are positive and finite;
   - summarize_leaf_box_ab.py tabulates the lines.
+Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once): the
+two trees' options are recorded, they give the same answers, and the figures are finite.
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
@@ -45,6 +47,21 @@ def main(bench):
             check(table.returncode == 0, f"summarize_leaf_box_ab.py exit status {table.returncode}: {table.stderr}")
             rows_out = [l for l in table.stdout.splitlines() if l.startswith("| ")]
             check(len(rows_out) == 1 + len(rows), "summarize_leaf_box_ab.py: not a header and one row per line")
+    cut = subprocess.run([bench, "--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "primary", "--mode",
+                          "shadow", "--kd-empty-cut", "2", "--ab-kd-empty-cut", "0", "--json"],
+                         capture_output=True, text=True, timeout=240)
+    check(cut.returncode == 0, f"rtc-bench --ab-kd-empty-cut exit status {cut.returncode}: {cut.stderr[-2000:]}")
+    cut_rows = [json.loads(line) for line in cut.stdout.splitlines() if line.startswith("{")]
+    check([r.get("mode") for r in cut_rows] == ["primary", "shadow"], f"modes {[r.get('mode') for r in cut_rows]}")
+    for r in cut_rows:
+        ab = r.get("ab", {})
+        mode = r.get("mode")
+        check(r.get("kd_empty_cut") == 2 and ab.get("kd_empty_cut") == 0,
+              f"{mode}: empty cuts {r.get('kd_empty_cut')} and {ab.get('kd_empty_cut')}, expected 2 and 0")
+        check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
+        check(ab.get("answers_differ") == 0, f"{mode}: {ab.get('answers_differ')} answers differ between the trees")
+        for key in ("mrays_per_s", "speed_vs_first_paired", "speed_vs_first_single_paired"):
+            check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
 

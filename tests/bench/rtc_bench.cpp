@@ -240,6 +240,11 @@ int run(int argc, char** argv) {
   app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);
   app.add_option("--kd-intersection-cost", kd_options.intersection_cost, "SAH K_I")->check(CLI::PositiveNumber);
   app.add_option("--kd-empty-bonus", kd_options.empty_bonus, "SAH empty-space bonus")->check(CLI::Range(0.0f, 0.99f));
+  app.add_option("--kd-empty-cut", kd_options.empty_cut,
+                 "event-sweep nodes whose triangles leave at least this fraction of the cell empty on one side are "
+                 "cut there without the SAH sweep (above 1: off)")
+      ->check(CLI::Range(0.0f, 1e9f))
+      ->capture_default_str();
   app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
       ->check(CLI::Range(0, 60));
   std::string kd_clip_text = "auto";
@@ -253,6 +258,12 @@ int run(int argc, char** argv) {
   app.add_option("--ab-kd-leaf-box-saving", ab_leaf_box_saving,
                  "primary and shadow modes: also build a tree with this --kd-leaf-box-saving and time its packets and "
                  "single rays rep by rep beside the first tree's (paired ratios; the answers must be the same)")
+      ->check(CLI::Range(0.0f, 1e9f));
+  float ab_empty_cut = -1.0f;
+  app.add_option("--ab-kd-empty-cut", ab_empty_cut,
+                 "primary and shadow modes: also build a tree with this --kd-empty-cut (and --ab-kd-leaf-box-saving "
+                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired ratios; "
+                 "the answers must be the same)")
       ->check(CLI::Range(0.0f, 1e9f));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
@@ -300,9 +311,9 @@ int run(int argc, char** argv) {
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
-  if (ab_leaf_box_saving >= 0.0f &&
+  if ((ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f) &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
-    throw rtc::Error("--ab-kd-leaf-box-saving times primary and shadow rays: give --mode primary or --mode shadow");
+    throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
   }
 
   std::filesystem::path path(scene_path);
@@ -390,11 +401,14 @@ int run(int argc, char** argv) {
   const rtc::KdBuildStats& kd = fs->geometry->single_tree().stats();
   // --ab-kd-leaf-box-saving: the second tree, built once, untimed.
   std::shared_ptr<rtc::FrameState> fs_ab;
-  bool ab_differ = false;  // the two trees gave different answers: an error, after the figures
-  if (ab_leaf_box_saving >= 0.0f) {
-    rtc::KdBuildOptions o = kd_options;
-    o.leaf_box_saving = ab_leaf_box_saving;
-    fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, o);
+  // The two trees gave different answers (a tree changes no answer: a hit on a plane goes on
+  // into the next leaf, and ties are settled by triangle id): an error, after the figures.
+  bool ab_differ = false;
+  rtc::KdBuildOptions ab_options = kd_options;
+  if (ab_leaf_box_saving >= 0.0f) ab_options.leaf_box_saving = ab_leaf_box_saving;
+  if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
+  if (ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f) {
+    fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
   const std::size_t pixels = static_cast<std::size_t>(fs->width) * static_cast<std::size_t>(fs->height);
   double embree_build_ms = 0.0, embree_build_hq_ms = 0.0, build_vs_embree_hq = 0.0;
@@ -426,6 +440,7 @@ int run(int argc, char** argv) {
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_intersection_cost", kd_options.intersection_cost},
                          {"kd_mask_below", kd_options.effective_mask_below()},
+                         {"kd_empty_cut", kd_options.empty_cut},
                          {"kd_leaf_box_saving", kd_options.leaf_box_saving},
                          {"kd_leaf_boxes", kd.leaf_boxes},
                          {"reps", reps}};
@@ -583,7 +598,9 @@ int run(int argc, char** argv) {
         const double single_ratio = rtc::bench::paired_ratio(times[1], times[first_ab + 1]);
         const double mrays = rays / rtc::bench::median_of(times[first_ab]) / 1e3;
         const double mrays_single = rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3;
-        out["ab"] = {{"kd_leaf_box_saving", ab_leaf_box_saving},
+        out["ab"] = {{"kd_leaf_box_saving", ab_options.leaf_box_saving},
+                     {"kd_empty_cut", ab_options.empty_cut},
+                     {"kd_nodes", kd_ab.nodes},
                      {"kd_leaf_boxes", kd_ab.leaf_boxes},
                      {"mrays_per_s", mrays},
                      {"mrays_per_s_single", mrays_single},
@@ -592,9 +609,10 @@ int run(int argc, char** argv) {
                      {"answers_differ", differ}};
         ab_differ = ab_differ || differ != 0;
         if (!json) {
-          std::printf("  %-7s tree with --kd-leaf-box-saving %g: packets %.2f M rays/s (%.3fx the first tree's, paired), "
-                      "single rays %.2f (%.3fx)%s\n",
-                      mode.c_str(), static_cast<double>(ab_leaf_box_saving), mrays, packet_ratio, mrays_single,
+          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g: packets %.2f M rays/s (%.3fx the "
+                      "first tree's, paired), single rays %.2f (%.3fx)%s\n",
+                      mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
+                      static_cast<double>(ab_options.empty_cut), mrays, packet_ratio, mrays_single,
                       single_ratio,
                       differ != 0 ? ", ANSWERS DIFFER" : "");
         }
@@ -883,9 +901,10 @@ int run(int argc, char** argv) {
   }
   if (ab_differ) {
     std::fprintf(stderr,
-                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g the answers differ (between the trees, or "
-                 "between packets and single rays)\n",
-                 static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_leaf_box_saving));
+                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g the answers differ "
+                 "(between the trees, or between packets and single rays)\n",
+                 static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
+                 static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut));
     return 4;
   }
   return 0;

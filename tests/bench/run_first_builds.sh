@@ -48,12 +48,13 @@ for line in sys.stdin:
   done
 done
 mv "$out/$name.txt.tmp" "$out/$name.txt"
-python3 - "$out/$name.txt" "$name" "$threads" "$idle" "${bins[0]}" "${bins[1]}" > "$out/$name.md" <<'EOF'
+python3 - "$out/$name.txt" "$name" "$threads" "$idle" "${bins[0]}" "${bins[1]}" "${args[0]}" "${args[1]}" \
+  > "$out/$name.md" <<'EOF'
 import collections
 import statistics
 import sys
 
-path, name, threads, idle, bin_a, bin_b = sys.argv[1:]
+path, name, threads, idle, bin_a, bin_b, args_a, args_b = sys.argv[1:]
 runs = collections.defaultdict(list)
 views = []
 for line in open(path):
@@ -62,7 +63,8 @@ for line in open(path):
         views.append(view)
     runs[(view, label)].append((float(build), float(mrays)))
 print(f"# First builds in a fresh process: A against B ({name})\n")
-print(f"`tests/bench/run_first_builds.sh A B {name}` with A = `{bin_a}`, B = `{bin_b}`: each run a "
+print(f"`tests/bench/run_first_builds.sh A B {name}` with A = `{(bin_a + ' ' + args_a).strip()}`, "
+      f"B = `{(bin_b + ' ' + args_b).strip()}`: each run a "
       f"fresh rtc-bench process after {idle} s idle, {threads} threads, one build, then primary rays "
       "(median of 5). Build: the tree's build as rtc-bench times it (flattening plus kd-tree).\n")
 print("| view | build ms A (runs) | build ms B (runs) | median A → B | B/A | primary M rays/s A → B |")

@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Leaf boxes (KdBuildOptions::leaf_box_saving) at two values on every view of the shared scene
-# pack, in one process per view: rtc-bench builds a tree with each value and times both trees'
-# packets and single rays rep by rep (--ab-kd-leaf-box-saving), so a slow spell of the machine
-# falls on both alike, and checks that both trees give the same answers. Writes
+# Leaf boxes (KdBuildOptions::leaf_box_saving), or with AB_OPTION=kd-empty-cut the empty-gap cut
+# (KdBuildOptions::empty_cut), at two values on every view of the shared scene pack, in one
+# process per view: rtc-bench builds a tree with each value and times both trees' packets and
+# single rays rep by rep (--ab-kd-leaf-box-saving / --ab-kd-empty-cut), so a slow spell of the
+# machine falls on both alike, and checks that both trees give the same answers. Writes
 # tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
 # (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
 # first's, paired rep by rep).
 # Usage: tests/bench/run_leaf_box_ab.sh NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]
-#   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default)
+#   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default); with
+#   AB_OPTION=kd-empty-cut A and B are required (e.g. 2 0.2: off against the default)
 # RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench); AB_ISA: the
 # kernel ISA (default: rtc-bench's, the widest the CPU runs).
 set -euo pipefail
@@ -17,8 +19,13 @@ name=$1
 scenes=${2:-../shared/scenes}
 threads=${3:-1}
 reps=${4:-15}
-a=${5:-0}
-b=${6:-2}
+option=${AB_OPTION:-kd-leaf-box-saving}
+case "$option" in
+  kd-leaf-box-saving) a=${5:-0} b=${6:-2} ;;
+  kd-empty-cut) [ $# -ge 6 ] || { echo "run_leaf_box_ab: AB_OPTION=kd-empty-cut needs A and B" >&2; exit 2; }
+    a=$5 b=$6 ;;
+  *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving or kd-empty-cut, got $option" >&2; exit 2 ;;
+esac
 bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}
 [ -d "$scenes" ] || { echo "run_leaf_box_ab: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
 if [ -n "${RTC_BENCH:-}" ]; then
@@ -33,12 +40,12 @@ mkdir -p "$out"
 views=$(find -L "$scenes" -name 'view*.json' | sort)
 [ -n "$views" ] || { echo "run_leaf_box_ab: no view*.json under $scenes" >&2; exit 1; }
 for view in $views; do
-  echo "$bench $view --kd-leaf-box-saving $a --ab-kd-leaf-box-saving $b ($threads threads, $reps reps)" >&2
+  echo "$bench $view --$option $a --ab-$option $b ($threads threads, $reps reps)" >&2
   # shellcheck disable=SC2086  # isa_args is words
   "$bench" "$view" --threads "$threads" --reps "$reps" --build-reps 1 --mode primary --mode shadow $isa_args \
-    --cpu-time --json --kd-leaf-box-saving "$a" --ab-kd-leaf-box-saving "$b" >> "$out/$name.txt.tmp"
+    --cpu-time --json "--$option" "$a" "--ab-$option" "$b" >> "$out/$name.txt.tmp"
 done
 mv "$out/$name.txt.tmp" "$out/$name.txt"
 python3 tests/bench/summarize_leaf_box_ab.py "$out/$name.txt" \
-  "tests/bench/run_leaf_box_ab.sh $name $scenes $threads $reps $a $b" > "$out/$name.md"
+  "${AB_OPTION:+AB_OPTION=$option }tests/bench/run_leaf_box_ab.sh $name $scenes $threads $reps $a $b" > "$out/$name.md"
 echo "wrote $out/$name.txt and $out/$name.md" >&2

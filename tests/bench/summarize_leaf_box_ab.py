@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
---ab-kd-leaf-box-saving), with the medians over the views.
+--ab-kd-leaf-box-saving or --ab-kd-empty-cut, whichever the two trees differ in), with the
+medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
 import statistics
@@ -13,14 +14,20 @@ def main() -> None:
     if not rows:
         sys.exit(f"{sys.argv[1]}: no results")
     first = rows[0]
-    a, b = first["kd_leaf_box_saving"], first["ab"]["kd_leaf_box_saving"]
-    print(f"# Leaf boxes: --kd-leaf-box-saving {b:g} against {a:g}\n")
+    # Older lines (before --ab-kd-empty-cut) carry no kd_empty_cut: leaf boxes.
+    cut = first.get("kd_empty_cut") != first["ab"].get("kd_empty_cut", first.get("kd_empty_cut"))
+    key, size, size_label = (("kd_empty_cut", "kd_nodes", "nodes") if cut else
+                             ("kd_leaf_box_saving", "kd_leaf_boxes", "boxes"))
+    a, b = first[key], first["ab"][key]
+    title = "Empty gaps cut without the sweep" if cut else "Leaf boxes"
+    print(f"# {title}: --{key.replace('_', '-')} {b:g} against {a:g}\n")
     print(f"Regenerate with `{sys.argv[2]}`. {first['threads']} thread(s), isa {first['isa']}, "
           f"{first['reps']} reps, process CPU time. Each view is one process: both trees are built, then "
           "their packets and single rays take turns rep by rep; a ratio is the median over the reps of "
           "the first tree's time over the second's (above 1: the second is faster). `differ`: rays whose "
           "answers differ between the trees (must be 0).\n")
-    print(f"| scene | tris | mode | boxes ({b:g}) | packets {a:g} | packets {b:g} | ratio | single {a:g} | "
+    sizes_head = f"{size_label} ({a:g} → {b:g})" if cut else f"{size_label} ({b:g})"
+    print(f"| scene | tris | mode | {sizes_head} | packets {a:g} | packets {b:g} | ratio | single {a:g} | "
           f"single {b:g} | ratio | differ |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     ratios = {"primary": ([], []), "shadow": ([], [])}
@@ -28,7 +35,8 @@ def main() -> None:
         ab = r["ab"]
         ratios[r["mode"]][0].append(ab["speed_vs_first_paired"])
         ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
-        print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {ab['kd_leaf_boxes']:,} | "
+        sizes = f"{r[size]:,} → {ab[size]:,}" if cut else f"{ab[size]:,}"
+        print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {sizes} | "
               f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
               f"{r['mrays_per_s_single']:.2f} | {ab['mrays_per_s_single']:.2f} | "
               f"{ab['speed_vs_first_single_paired']:.3f} | {ab['answers_differ']} |")

@@ -183,6 +183,33 @@ Soup pile_below_cut(std::uint32_t seed) {
   return s;
 }
 
+// Two slabs of 1000 triangles each, x in [0, 0.1] and [0.9, 1] with y and z in [0, 1] (one
+// triangle in each spans its slab's box, so the bounds are exact), and one thin triangle at
+// x = 5 up to y = 1.1. The root cuts the thin one off at x = 1; its left child's cell is then
+// [0, 1] x [0, 1.1] x [0, 1], with the slabs leaving a gap of 0.1 / 1.1 = 0.09 of y above them.
+// There the SAH prefers a plane between the slabs (x = 0.1) to cutting off that gap.
+Soup slabs_under_gap() {
+  Soup s;
+  const auto add_slab = [&](std::uint32_t seed, float x_lo) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> x(x_lo, x_lo + 0.1f), yz(0.0f, 1.0f);
+    auto b = static_cast<unsigned>(s.positions.size());
+    s.positions.insert(s.positions.end(), {{x_lo, 0.0f, 0.0f}, {x_lo + 0.1f, 1.0f, 0.0f}, {x_lo, 0.0f, 1.0f}});
+    s.triangles.emplace_back(b, b + 1, b + 2);
+    for (int i = 1; i < 1000; ++i) {
+      b = static_cast<unsigned>(s.positions.size());
+      for (int k = 0; k < 3; ++k) s.positions.emplace_back(x(rng), yz(rng), yz(rng));
+      s.triangles.emplace_back(b, b + 1, b + 2);
+    }
+  };
+  add_slab(71, 0.0f);
+  add_slab(73, 0.9f);
+  const auto b = static_cast<unsigned>(s.positions.size());
+  s.positions.insert(s.positions.end(), {{5.0f, 0.0f, 0.0f}, {5.1f, 1.1f, 0.0f}, {5.0f, 0.0f, 1.0f}});
+  s.triangles.emplace_back(b, b + 1, b + 2);
+  return s;
+}
+
 std::vector<std::uint32_t> refs_of(const KdTree& tree) { return {tree.prim_refs().begin(), tree.prim_refs().end()}; }
 
 bool leaf_has(const KdTree& tree, const KdNode& leaf, std::uint32_t tri) {
@@ -252,13 +279,15 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
        {random_soup(7, 5000, 0.05f), sphere_and_grid(24), random_soup(11, 300, 0.8f), sliver_fan(13, 3000),
         separate_boxes(47, 400, 1), pile_below_cut(61)}) {
     // The bit-mask stage from 256 references (four words), 130 (three), 64 (one), 17, and not
-    // at all.
-    for (const auto& [clip, mask_below] :
-         {std::pair{true, 256}, std::pair{true, 130}, std::pair{true, 64}, std::pair{true, 17}, std::pair{true, 0},
-          std::pair{false, 256}, std::pair{false, 64}, std::pair{false, 0}}) {
+    // at all; empty gaps cut at once from 0 of the cell (any gap), 0.3, or never.
+    for (const auto& [clip, mask_below, empty_cut] :
+         {std::tuple{true, 256, 0.0f}, std::tuple{true, 130, 2.0f}, std::tuple{true, 64, 0.3f},
+          std::tuple{true, 17, 0.0f}, std::tuple{true, 0, 2.0f}, std::tuple{true, 0, 0.0f},
+          std::tuple{false, 256, 0.3f}, std::tuple{false, 64, 2.0f}, std::tuple{false, 0, 0.0f}}) {
       KdBuildOptions o;
       o.clip = clip;
       o.mask_below = mask_below;
+      o.empty_cut = empty_cut;
       const KdTree tree = KdTree::build(s.positions, s.triangles, o);
       ASSERT_FALSE(tree.empty());
       EXPECT_GT(tree.stats().leaves, 1u);
@@ -269,7 +298,8 @@ TEST(KdTree, EveryTriangleReachableFromTheLeavesItOverlaps) {
       }();
       for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
         ASSERT_TRUE(reachable(tree, s, 0, root, t))
-            << "triangle " << t << " unreachable, clip " << clip << ", mask below " << mask_below;
+            << "triangle " << t << " unreachable, clip " << clip << ", mask below " << mask_below << ", empty cut "
+            << empty_cut;
       }
     }
   }
@@ -565,6 +595,7 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
       KdBuildOptions sweep;
       sweep.clip = false;
       sweep.mask_below = 0;
+      sweep.empty_cut = 2.0f;  // every node swept: the bit masks have no such shortcut
       sweep.traversal_cost = traversal_cost;
       KdBuildOptions masks = sweep;
       masks.mask_below = mask_below;
@@ -590,6 +621,34 @@ TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   const KdTree a = KdTree::build(fan.positions, fan.triangles, sweep);
   const KdTree b = KdTree::build(fan.positions, fan.triangles, KdBuildOptions{});
   EXPECT_NE(a.stats().sah_cost, b.stats().sah_cost);
+}
+
+TEST(KdTree, WideEmptyGapsAreCutWithoutTheSweep) {
+  // KdBuildOptions::empty_cut: a gap of at least that fraction of the cell is cut off at the
+  // references' bound; a narrower one is left to the SAH sweep, which cuts between the slabs.
+  const Soup s = slabs_under_gap();
+  for (const float empty_cut : {0.0f, 0.05f, 0.09f, 0.1f, 0.5f, 2.0f}) {
+    SCOPED_TRACE(testing::Message() << "empty_cut " << empty_cut);
+    KdBuildOptions o;
+    o.empty_cut = empty_cut;
+    const KdTree tree = KdTree::build(s.positions, s.triangles, o);
+    const KdNode root = tree.nodes()[0];
+    ASSERT_FALSE(root.is_leaf());
+    ASSERT_EQ(root.axis(), 0);
+    ASSERT_EQ(root.split, 1.0f);
+    const KdNode slabs = tree.nodes()[root.left()];
+    ASSERT_FALSE(slabs.is_leaf());
+    if (empty_cut <= 0.1f / 1.1f) {
+      EXPECT_EQ(slabs.axis(), 1);
+      EXPECT_EQ(slabs.split, 1.0f);
+      EXPECT_TRUE(slabs.child_empty(1));
+      EXPECT_FALSE(slabs.child_empty(0));
+    } else {
+      EXPECT_EQ(slabs.axis(), 0);
+      EXPECT_FALSE(slabs.child_empty(0));
+      EXPECT_FALSE(slabs.child_empty(1));
+    }
+  }
 }
 
 // The vector code this CPU can run in the build (KdBuildOptions::simd_limit): AVX2 and AVX-512
@@ -1058,22 +1117,24 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   for (bool watertight : {false, true}) {
   const KdTree base = KdTree::build(s.positions, s.triangles, with_test(watertight));
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
-  for (const auto& [kt, ki, leaf, clip, mask] :
-       {std::tuple{1.0f, 1.5f, 1, true, 64}, std::tuple{4.0f, 1.0f, 1, true, 64}, std::tuple{1.0f, 3.0f, 8, true, 64},
-        std::tuple{2.0f, 1.5f, 1, false, 64}, std::tuple{3.0f, 1.5f, 1, true, 0}, std::tuple{2.0f, 1.5f, 1, true, 9},
-        std::tuple{1.0f, 1.5f, 1, true, 256}, std::tuple{2.0f, 1.0f, 1, true, 100}}) {
+  for (const auto& [kt, ki, leaf, clip, mask, empty_cut] :
+       {std::tuple{1.0f, 1.5f, 1, true, 64, 2.0f}, std::tuple{4.0f, 1.0f, 1, true, 64, 0.0f},
+        std::tuple{1.0f, 3.0f, 8, true, 64, 0.5f}, std::tuple{2.0f, 1.5f, 1, false, 64, 0.1f},
+        std::tuple{3.0f, 1.5f, 1, true, 0, 0.0f}, std::tuple{2.0f, 1.5f, 1, true, 9, 2.0f},
+        std::tuple{1.0f, 1.5f, 1, true, 256, 0.2f}, std::tuple{2.0f, 1.0f, 1, true, 100, 0.0f}}) {
     KdBuildOptions o = with_test(watertight);
     o.traversal_cost = kt;
     o.intersection_cost = ki;
     o.leaf_size = leaf;
     o.clip = clip;
     o.mask_below = mask;
+    o.empty_cut = empty_cut;
     const KdTree other = KdTree::build(s.positions, s.triangles, o);
     trace_kernels().intersect(other, rays.data(), got.data(), rays.size(), true);
     for (std::size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
           << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << " clip " << clip
-          << " mask below " << mask << ": "
+          << " mask below " << mask << " empty cut " << empty_cut << ": "
           << test::describe_ray(rays[i]);
     }
   }
