@@ -185,13 +185,14 @@ struct KdBuildOptions {
   /// its references' bound, without the SAH sweep over its planes (the widest such gap first;
   /// where the SAH would rather make the node a leaf than take that cut, the sweep decides as
   /// usual). A cut takes a level of the depth limit like any other. Above 1: off, every node
-  /// swept. 0.2: against off, spd-tree builds in 0.86-0.90x the time (one and two threads)
-  /// with 25% fewer nodes and the SAH cost unchanged; the other views' builds move within this
-  /// machine's noise (0.89-1.04x). Trace speed is unchanged: 16-wide packets 0.98-1.06x over the
-  /// 16 shared views (medians 1.004 primary, 1.001 shadow, paired within one process), 0.99-1.02x
-  /// on close-ups of five large scenes (tests/bench/results/kd_empty_cut.md, kd_empty_cut_close.md;
-  /// 0.1 lost 3-5% on spd-rings and spd-balls, 0.3 built spd-tree only 0.96x as fast at 2 threads:
-  /// build_experiments.md, session 29).
+  /// swept. 0.2: against off, spd-tree builds in 0.84-0.89x the time (one thread, two, first
+  /// builds) with 25% fewer nodes and the same SAH cost; the other views' builds take 0.89-1.04x
+  /// (one thread: medians 0.95-0.96x in three runs), spd-balls' SAH cost rises 15% with the same
+  /// trace speed. Trace speed is unchanged: 16-wide packets 0.98-1.06x over the 16 shared views
+  /// (medians 1.004 primary, 1.001 shadow, paired within one process), 0.99-1.02x on close-ups
+  /// of five large scenes (tests/bench/results/kd_empty_cut.md, kd_empty_cut_close.md). 0.1 lost
+  /// 3-5% on spd-rings and spd-balls; 0.3 built spd-tree in 0.96x the time at 2 threads, against
+  /// 0.89x at 0.2 (build_experiments.md, session 29).
   float empty_cut = 0.2f;
   int max_depth = 0;               ///< 0: 8 + 1.3 log2(N), at most 60
   int leaf_size = 1;               ///< nodes with this many triangles or fewer become leaves

@@ -7,7 +7,8 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - both trees' throughputs and the paired ratios are positive and finite;
   - summarize_leaf_box_ab.py tabulates the lines.
 Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once): the
-two trees' options are recorded, they give the same answers, and the figures are finite.
+two trees' options are recorded, the trees differ, they give the same answers, the figures are
+finite and the summary tabulates them.
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
@@ -18,6 +19,20 @@ import sys
 import tempfile
 
 from bench_checks import check, failures, finite_positive
+
+
+def check_table(lines, count, column):
+    """summarize_leaf_box_ab.py tabulates `lines`: a header with `column`, then one row per line."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "ab.txt")
+        with open(path, "w") as f:
+            f.write(lines)
+        table = subprocess.run([sys.executable, os.path.join(os.path.dirname(__file__), "summarize_leaf_box_ab.py"),
+                                path, "check"], capture_output=True, text=True, timeout=60)
+        check(table.returncode == 0, f"summarize_leaf_box_ab.py exit status {table.returncode}: {table.stderr}")
+        rows_out = [l for l in table.stdout.splitlines() if l.startswith("| ")]
+        check(len(rows_out) == 1 + count, "summarize_leaf_box_ab.py: not a header and one row per line")
+        check(bool(rows_out) and column in rows_out[0], f"summarize_leaf_box_ab.py: no column {column!r}")
 
 
 def main(bench):
@@ -38,15 +53,7 @@ def main(bench):
             check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
         check(finite_positive(r.get("mrays_per_s")), f"{mode}: mrays_per_s = {r.get('mrays_per_s')}")
     if rows:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "ab.txt")
-            with open(path, "w") as f:
-                f.write(run.stdout)
-            table = subprocess.run([sys.executable, os.path.join(os.path.dirname(__file__), "summarize_leaf_box_ab.py"),
-                                    path, "check"], capture_output=True, text=True, timeout=60)
-            check(table.returncode == 0, f"summarize_leaf_box_ab.py exit status {table.returncode}: {table.stderr}")
-            rows_out = [l for l in table.stdout.splitlines() if l.startswith("| ")]
-            check(len(rows_out) == 1 + len(rows), "summarize_leaf_box_ab.py: not a header and one row per line")
+        check_table(run.stdout, len(rows), "boxes (1e-06)")
     cut = subprocess.run([bench, "--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "primary", "--mode",
                           "shadow", "--kd-empty-cut", "2", "--ab-kd-empty-cut", "0", "--json"],
                          capture_output=True, text=True, timeout=240)
@@ -59,9 +66,13 @@ def main(bench):
         check(r.get("kd_empty_cut") == 2 and ab.get("kd_empty_cut") == 0,
               f"{mode}: empty cuts {r.get('kd_empty_cut')} and {ab.get('kd_empty_cut')}, expected 2 and 0")
         check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
+        # The built-in scene has gaps the sweep does not cut first (40,553 nodes against 39,759).
+        check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
         check(ab.get("answers_differ") == 0, f"{mode}: {ab.get('answers_differ')} answers differ between the trees")
-        for key in ("mrays_per_s", "speed_vs_first_paired", "speed_vs_first_single_paired"):
+        for key in ("mrays_per_s", "mrays_per_s_single", "speed_vs_first_paired", "speed_vs_first_single_paired"):
             check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
+    if cut_rows:
+        check_table(cut.stdout, len(cut_rows), "nodes (2 → 0)")
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
 

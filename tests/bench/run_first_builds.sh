@@ -63,8 +63,8 @@ for line in open(path):
         views.append(view)
     runs[(view, label)].append((float(build), float(mrays)))
 print(f"# First builds in a fresh process: A against B ({name})\n")
-print(f"`tests/bench/run_first_builds.sh A B {name}` with A = `{(bin_a + ' ' + args_a).strip()}`, "
-      f"B = `{(bin_b + ' ' + args_b).strip()}`: each run a "
+env = "".join(f'{k}="{v}" ' for k, v in (("ARGS_A", args_a), ("ARGS_B", args_b)) if v)
+print(f"`{env}tests/bench/run_first_builds.sh A B {name}` with A = `{bin_a}`, B = `{bin_b}`: each run a "
       f"fresh rtc-bench process after {idle} s idle, {threads} threads, one build, then primary rays "
       "(median of 5). Build: the tree's build as rtc-bench times it (flattening plus kd-tree).\n")
 print("| view | build ms A (runs) | build ms B (runs) | median A → B | B/A | primary M rays/s A → B |")

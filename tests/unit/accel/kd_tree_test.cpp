@@ -184,10 +184,12 @@ Soup pile_below_cut(std::uint32_t seed) {
 }
 
 // Two slabs of 1000 triangles each, x in [0, 0.1] and [0.9, 1] with y and z in [0, 1] (one
-// triangle in each spans its slab's box, so the bounds are exact), and one thin triangle at
-// x = 5 up to y = 1.1. The root cuts the thin one off at x = 1; its left child's cell is then
-// [0, 1] x [0, 1.1] x [0, 1], with the slabs leaving a gap of 0.1 / 1.1 = 0.09 of y above them.
-// There the SAH prefers a plane between the slabs (x = 0.1) to cutting off that gap.
+// triangle in each spans its slab's box, so the bounds are exact; the first slab also holds
+// one lying in the plane y = 1), and one thin triangle at x = 5 up to y = 1.1. The root cuts
+// the thin one off at x = 1; its left child's cell is then [0, 1] x [0, 1.1] x [0, 1], with the
+// slabs leaving a gap of 0.1 / 1.1 = 0.09 of y above them. There the SAH prefers a plane
+// between the slabs (x = 0.1) to cutting off that gap. A cut at y = 1 is one-sided only if the
+// planar triangle there goes below it, with the rest.
 Soup slabs_under_gap() {
   Soup s;
   const auto add_slab = [&](std::uint32_t seed, float x_lo) {
@@ -196,7 +198,14 @@ Soup slabs_under_gap() {
     auto b = static_cast<unsigned>(s.positions.size());
     s.positions.insert(s.positions.end(), {{x_lo, 0.0f, 0.0f}, {x_lo + 0.1f, 1.0f, 0.0f}, {x_lo, 0.0f, 1.0f}});
     s.triangles.emplace_back(b, b + 1, b + 2);
-    for (int i = 1; i < 1000; ++i) {
+    int placed = 1;
+    if (x_lo == 0.0f) {
+      b = static_cast<unsigned>(s.positions.size());
+      s.positions.insert(s.positions.end(), {{0.0f, 1.0f, 0.0f}, {0.1f, 1.0f, 0.0f}, {0.0f, 1.0f, 1.0f}});
+      s.triangles.emplace_back(b, b + 1, b + 2);
+      ++placed;
+    }
+    for (int i = placed; i < 1000; ++i) {
       b = static_cast<unsigned>(s.positions.size());
       for (int k = 0; k < 3; ++k) s.positions.emplace_back(x(rng), yz(rng), yz(rng));
       s.triangles.emplace_back(b, b + 1, b + 2);
