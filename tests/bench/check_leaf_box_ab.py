@@ -35,44 +35,44 @@ def check_table(lines, count, column):
         check(bool(rows_out) and column in rows_out[0], f"summarize_leaf_box_ab.py: no column {column!r}")
 
 
-def main(bench):
-    run = subprocess.run([bench, "--threads", "2", "--reps", "4", "--build-reps", "1", "--mode", "primary", "--mode",
-                          "shadow", "--kd-leaf-box-saving", "0", "--ab-kd-leaf-box-saving", "0.000001", "--json"],
-                         capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench exit status {run.returncode}: {run.stderr[-2000:]}")
+def run_ab(bench, reps, options, column, check_row):
+    """rtc-bench's primary and shadow modes with `options` (a first tree and an --ab-kd-* second):
+    exit 0, one JSON line per mode, the same answers from both trees, finite figures, `check_row`
+    on each line, and a summary table with `column`."""
+    run = subprocess.run([bench, "--threads", "2", "--reps", str(reps), "--build-reps", "1", "--mode", "primary",
+                          "--mode", "shadow", *options, "--json"], capture_output=True, text=True, timeout=240)
+    check(run.returncode == 0, f"rtc-bench {' '.join(options)}: exit status {run.returncode}: {run.stderr[-2000:]}")
     rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
     check([r.get("mode") for r in rows] == ["primary", "shadow"], f"modes {[r.get('mode') for r in rows]}")
     for r in rows:
         ab = r.get("ab", {})
         mode = r.get("mode")
-        check(r.get("kd_leaf_boxes") == 0, f"{mode}: the first tree has {r.get('kd_leaf_boxes')} leaf boxes, expected 0")
-        check(isinstance(ab.get("kd_leaf_boxes"), int) and ab["kd_leaf_boxes"] > 0,
-              f"{mode}: the second tree has {ab.get('kd_leaf_boxes')} leaf boxes, expected some")
+        check_row(r, ab, mode)
         check(ab.get("answers_differ") == 0, f"{mode}: {ab.get('answers_differ')} answers differ between the trees")
         for key in ("mrays_per_s", "mrays_per_s_single", "speed_vs_first_paired", "speed_vs_first_single_paired"):
             check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
         check(finite_positive(r.get("mrays_per_s")), f"{mode}: mrays_per_s = {r.get('mrays_per_s')}")
     if rows:
-        check_table(run.stdout, len(rows), "boxes (1e-06)")
-    cut = subprocess.run([bench, "--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "primary", "--mode",
-                          "shadow", "--kd-empty-cut", "2", "--ab-kd-empty-cut", "0", "--json"],
-                         capture_output=True, text=True, timeout=240)
-    check(cut.returncode == 0, f"rtc-bench --ab-kd-empty-cut exit status {cut.returncode}: {cut.stderr[-2000:]}")
-    cut_rows = [json.loads(line) for line in cut.stdout.splitlines() if line.startswith("{")]
-    check([r.get("mode") for r in cut_rows] == ["primary", "shadow"], f"modes {[r.get('mode') for r in cut_rows]}")
-    for r in cut_rows:
-        ab = r.get("ab", {})
-        mode = r.get("mode")
-        check(r.get("kd_empty_cut") == 2 and ab.get("kd_empty_cut") == 0,
-              f"{mode}: empty cuts {r.get('kd_empty_cut')} and {ab.get('kd_empty_cut')}, expected 2 and 0")
-        check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
-        # The built-in scene has gaps the sweep does not cut first (40,553 nodes against 39,759).
-        check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
-        check(ab.get("answers_differ") == 0, f"{mode}: {ab.get('answers_differ')} answers differ between the trees")
-        for key in ("mrays_per_s", "mrays_per_s_single", "speed_vs_first_paired", "speed_vs_first_single_paired"):
-            check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
-    if cut_rows:
-        check_table(cut.stdout, len(cut_rows), "nodes (2 → 0)")
+        check_table(run.stdout, len(rows), column)
+
+
+def leaf_boxes(r, ab, mode):
+    check(r.get("kd_leaf_boxes") == 0, f"{mode}: the first tree has {r.get('kd_leaf_boxes')} leaf boxes, expected 0")
+    check(isinstance(ab.get("kd_leaf_boxes"), int) and ab["kd_leaf_boxes"] > 0,
+          f"{mode}: the second tree has {ab.get('kd_leaf_boxes')} leaf boxes, expected some")
+
+
+def empty_cuts(r, ab, mode):
+    check(r.get("kd_empty_cut") == 2 and ab.get("kd_empty_cut") == 0,
+          f"{mode}: empty cuts {r.get('kd_empty_cut')} and {ab.get('kd_empty_cut')}, expected 2 and 0")
+    check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
+    # The built-in scene has gaps the sweep does not cut first (40,553 nodes against 39,759).
+    check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
+
+
+def main(bench):
+    run_ab(bench, 4, ["--kd-leaf-box-saving", "0", "--ab-kd-leaf-box-saving", "0.000001"], "boxes (1e-06)", leaf_boxes)
+    run_ab(bench, 3, ["--kd-empty-cut", "2", "--ab-kd-empty-cut", "0"], "nodes (2 → 0)", empty_cuts)
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
 
