@@ -1681,15 +1681,16 @@ class BlockBuilder {
     out_.max_depth = std::max(out_.max_depth, depth);
     const float area = scaled_area(box, ctx_.sah_scale);
     SplitChoice split;
-    const bool may_split = depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f;
-    if (may_split) split = wide_empty_cut(off, len, count, box, area);
-    if (may_split && split.axis < 0) {
+    if (depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
       const float inv_area = 1.0f / area;
-      for (int axis = 0; axis < 3; ++axis) {
-        // The earliest axis wins a tie.
-        const SplitChoice c =
-            best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
-        if (c.cost < split.cost) split = c;
+      split = wide_empty_cut(off, len, count, box, inv_area);
+      if (split.axis < 0) {
+        for (int axis = 0; axis < 3; ++axis) {
+          // The earliest axis wins a tie.
+          const SplitChoice c =
+              best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
+          if (c.cost < split.cost) split = c;
+        }
       }
     }
     if (split.axis < 0 || !(split.cost < options.intersection_cost * static_cast<float>(count))) {
@@ -1907,7 +1908,7 @@ class BlockBuilder {
   // references at the plane stay with the rest (planar_left: true at the upper bound), so every
   // reference goes to one side and cut_off_empty takes the cut. No cut: axis -1.
   [[nodiscard]] SplitChoice wide_empty_cut(const std::size_t off[3], const std::size_t len[3], std::size_t count,
-                                           const Aabb& box, float area) const {
+                                           const Aabb& box, float inv_area) const {
     const KdBuildOptions& options = ctx_.options;
     if (!(options.empty_cut <= 1.0f)) return SplitChoice{};
     float widest = 0.0f;
@@ -1925,7 +1926,7 @@ class BlockBuilder {
     const Event* ev = s_.arena.at(off[axis]);
     const float p = upper ? ev[len[axis] - 1].pos : ev[0].pos;
     if (!(p > box.lo[axis] && p < box.hi[axis])) return SplitChoice{};
-    const SahAxis sah(options, box, axis, 1.0f / area, ctx_.sah_scale);
+    const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
     const float cost = upper ? sah.cost(p, count, 0) : sah.cost(p, 0, count);
     if (!(cost < options.intersection_cost * static_cast<float>(count))) return SplitChoice{};
     return SplitChoice{axis, p, upper, cost};

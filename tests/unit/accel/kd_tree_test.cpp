@@ -192,30 +192,27 @@ Soup pile_below_cut(std::uint32_t seed) {
 // planar triangle there goes below it, with the rest.
 Soup slabs_under_gap() {
   Soup s;
+  const auto add = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+    const auto first = static_cast<unsigned>(s.positions.size());
+    s.positions.insert(s.positions.end(), {a, b, c});
+    s.triangles.emplace_back(first, first + 1, first + 2);
+  };
   const auto add_slab = [&](std::uint32_t seed, float x_lo) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> x(x_lo, x_lo + 0.1f), yz(0.0f, 1.0f);
-    auto b = static_cast<unsigned>(s.positions.size());
-    s.positions.insert(s.positions.end(), {{x_lo, 0.0f, 0.0f}, {x_lo + 0.1f, 1.0f, 0.0f}, {x_lo, 0.0f, 1.0f}});
-    s.triangles.emplace_back(b, b + 1, b + 2);
-    int placed = 1;
-    if (x_lo == 0.0f) {
-      b = static_cast<unsigned>(s.positions.size());
-      s.positions.insert(s.positions.end(), {{0.0f, 1.0f, 0.0f}, {0.1f, 1.0f, 0.0f}, {0.0f, 1.0f, 1.0f}});
-      s.triangles.emplace_back(b, b + 1, b + 2);
-      ++placed;
-    }
-    for (int i = placed; i < 1000; ++i) {
-      b = static_cast<unsigned>(s.positions.size());
-      for (int k = 0; k < 3; ++k) s.positions.emplace_back(x(rng), yz(rng), yz(rng));
-      s.triangles.emplace_back(b, b + 1, b + 2);
+    const std::size_t end = s.triangles.size() + 1000;
+    add({x_lo, 0.0f, 0.0f}, {x_lo + 0.1f, 1.0f, 0.0f}, {x_lo, 0.0f, 1.0f});
+    if (x_lo == 0.0f) add({0.0f, 1.0f, 0.0f}, {0.1f, 1.0f, 0.0f}, {0.0f, 1.0f, 1.0f});
+    while (s.triangles.size() < end) {
+      // Braces fix the draws' order: vertex by vertex, x, y, z.
+      glm::vec3 v[3];
+      for (glm::vec3& p : v) p = {x(rng), yz(rng), yz(rng)};
+      add(v[0], v[1], v[2]);
     }
   };
   add_slab(71, 0.0f);
   add_slab(73, 0.9f);
-  const auto b = static_cast<unsigned>(s.positions.size());
-  s.positions.insert(s.positions.end(), {{5.0f, 0.0f, 0.0f}, {5.1f, 1.1f, 0.0f}, {5.0f, 0.0f, 1.0f}});
-  s.triangles.emplace_back(b, b + 1, b + 2);
+  add({5.0f, 0.0f, 0.0f}, {5.1f, 1.1f, 0.0f}, {5.0f, 0.0f, 1.0f});
   return s;
 }
 
