@@ -11,7 +11,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <sstream>
 
@@ -19,7 +21,6 @@
 #include <sys/mman.h>
 
 #include <fmt/format.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
@@ -396,6 +397,7 @@ struct Block {
 // every child list before writing it).
 class EventArena {
  public:
+  [[nodiscard]] std::size_t bytes() const { return capacity_ * sizeof(Event); }
   std::size_t alloc(std::size_t n) {
     if (size_ + n > capacity_) grow(size_ + n);
     const std::size_t offset = size_;
@@ -546,6 +548,77 @@ struct Scratch {
   std::vector<std::uint32_t> mask_refs;  // bit -> index into the block's triangle list
   MaskPlanes mask_planes[3];
   std::vector<MaskTask> mask_stack;
+
+  // What the buffers hold (their capacity), for ScratchPool's limit.
+  [[nodiscard]] std::size_t bytes() const {
+    std::size_t n = arena.bytes();
+    const auto add = [&n](const auto& v) { n += v.capacity() * sizeof(v[0]); };
+    add(side), add(sort_buffer), add(leaf), add(sort_bits), add(bounds), add(restore), add(straddlers), add(slot);
+    add(clip_left), add(clip_right), add(new_left), add(new_right), add(mask_refs), add(mask_stack);
+    for (int axis = 0; axis < 3; ++axis) {
+      add(kept_left[axis]), add(kept_right[axis]);
+      const MaskPlanes& p = mask_planes[axis];
+      add(p.pos);
+      for (std::size_t w = 0; w < kMaskWords; ++w) add(p.below[w]), add(p.above[w]), add(p.planar[w]), add(p.owners[w]);
+    }
+    return n;
+  }
+};
+
+// Scratch buffers kept from one block to the next and from one build to the next. Fresh
+// buffers in every build cost a small scene's build most of its time in page faults (bunny,
+// 3,674 triangles: 746 faults, about 2 ms of a 5 ms build), and a moving mesh's tree is
+// rebuilt frame after frame. A block takes one for its whole run (it never waits on other
+// tasks), so there are never more than the blocks built at once; a buffer set above kKeep
+// bytes is freed instead of kept, and so is one a failed block leaves behind.
+class ScratchPool {
+ public:
+  static constexpr std::size_t kKeep = std::size_t{64} << 20;
+
+  // A set of buffers for one block, given back when it goes out of scope.
+  class Lease {
+   public:
+    explicit Lease(ScratchPool& pool) : pool_(pool), scratch_(pool.take()) {}
+    Lease(const Lease&) = delete;
+    Lease& operator=(const Lease&) = delete;
+    ~Lease() {
+      // Unwinding: a block stopped half-way may leave buffers whose invariants do not hold
+      // (sort_bits all zero), so they are not kept.
+      if (std::uncaught_exceptions() == exceptions_) pool_.give(std::move(scratch_));
+    }
+    Scratch& operator*() const { return *scratch_; }
+
+   private:
+    ScratchPool& pool_;
+    std::unique_ptr<Scratch> scratch_;
+    int exceptions_ = std::uncaught_exceptions();
+  };
+
+  static ScratchPool& instance() {
+    static ScratchPool pool;
+    return pool;
+  }
+
+ private:
+  std::unique_ptr<Scratch> take() {
+    {
+      const std::lock_guard lock(mutex_);
+      if (!free_.empty()) {
+        std::unique_ptr<Scratch> s = std::move(free_.back());
+        free_.pop_back();
+        return s;
+      }
+    }
+    return std::make_unique<Scratch>();
+  }
+  void give(std::unique_ptr<Scratch> s) {
+    if (s->bytes() > kKeep) return;
+    const std::lock_guard lock(mutex_);
+    free_.push_back(std::move(s));
+  }
+
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Scratch>> free_;
 };
 
 std::uint32_t sort_key(float pos) {
@@ -2003,7 +2076,8 @@ class TopBuilder {
     }
     // A big node that no bin boundary pays to cut still gets the exact sweep's every plane.
     if (split.axis < 0 || !(split.cost < ctx_.options.intersection_cost * static_cast<float>(n))) {
-      BlockBuilder(ctx_, scratch_.local(), tris, node->block).run(box, depth);
+      const ScratchPool::Lease scratch(ScratchPool::instance());
+      BlockBuilder(ctx_, *scratch, tris, node->block).run(box, depth);
       node->nodes_below = node->block.nodes.size() - 1;
       node->refs = node->block.refs.size();
       return node;
@@ -2277,7 +2351,6 @@ class TopBuilder {
   }
 
   const BuildContext& ctx_;
-  tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 
 // A leaf's LeafBox: `box` widened by `pad` on every side.

@@ -580,6 +580,40 @@ Soup signed_zero_cells() {
   return s;
 }
 
+// The build keeps its scratch buffers from one build to the next (ScratchPool): a tree built
+// after other builds have used and left them behind is the tree a fresh process builds.
+TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
+  const Soup a = random_soup(11, 3000, 0.05f);  // one block
+  const auto same_tree = [](const KdTree& x, const KdTree& y) {
+    ASSERT_EQ(x.nodes().size(), y.nodes().size());
+    for (std::size_t i = 0; i < x.nodes().size(); ++i) {
+      ASSERT_EQ(x.nodes()[i].bits, y.nodes()[i].bits) << "node " << i;
+      ASSERT_EQ(x.nodes()[i].count, y.nodes()[i].count) << "node " << i;
+    }
+    ASSERT_EQ(refs_of(x), refs_of(y));
+    ASSERT_EQ(x.leaf_records().size(), y.leaf_records().size());
+    EXPECT_EQ(std::memcmp(x.leaf_records().data(), y.leaf_records().data(), x.leaf_records().size_bytes()), 0);
+  };
+  for (const bool clip : {true, false}) {
+    SCOPED_TRACE(testing::Message() << "clip " << clip);
+    KdBuildOptions o;
+    o.clip = clip;
+    o.threads = 2;
+    const KdTree first = KdTree::build(a.positions, a.triangles, o);
+    // Other builds in between leave bigger lists, masks of every width and stacks behind.
+    const Soup piles = planar_piles(12, 5000);
+    const Soup big = random_soup(13, 20000, 0.02f);
+    for (const int mask_below : {0, 64, 256}) {
+      KdBuildOptions other = o;
+      other.mask_below = mask_below;
+      (void)KdTree::build(piles.positions, piles.triangles, other);
+      (void)KdTree::build(big.positions, big.triangles, other);
+    }
+    const KdTree again = KdTree::build(a.positions, a.triangles, o);
+    same_tree(first, again);
+  }
+}
+
 TEST(KdTree, BitMaskStageBuildsTheEventSweepsTreeWithoutClipping) {
   // Without clipping the bit masks are the event sweep by other means: the same planes, counts,
   // costs and ties, so node for node the same tree.
