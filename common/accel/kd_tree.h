@@ -208,6 +208,15 @@ struct KdBuildOptions {
   /// that root (the tree is identical with clip off). 0: the event sweep down to the leaves.
   /// -1 (the default): effective_mask_below().
   int mask_below = -1;
+  /// Nodes of more references than this are split with the binned SAH (256 bins per axis, the
+  /// best plane refined to an exact one) in parallel; smaller ones are blocks, built with the
+  /// exact event sweep (and the bit masks below mask_below), their large nodes' children side
+  /// by side where a block is a large part of the scene. 4096: 2048 and 8192 built within 4%
+  /// of it, 8192 0.94-1.26x the time over the 16 views with the same trace speed; 1024 and 512
+  /// build the small scenes' trees from several blocks, but trace them slower on some views
+  /// (16-wide packets 0.88-1.09x and 0.81-1.03x over ten small and medium views, spd-tetra-s8
+  /// and spd-gears' shadow rays the worst; tests/bench/results/exact_below_1024_small.md).
+  int exact_below = 4096;
   int threads = 0;                 ///< 0: all cores (TBB's default)
   /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
   /// references are the same either way (the same triangles are left out as degenerate).
@@ -266,6 +275,9 @@ struct KdBuildStats {
   double mean_tris_per_leaf = 0;  ///< over non-empty leaves
   double sah_cost = 0;            ///< expected cost of a random ray through the root
   std::uint64_t bytes = 0;        ///< what the tree holds: nodes, references and leaf records
+  /// Nodes of the exact stage whose two children were built side by side by other threads (a
+  /// small scene is one block of that stage); the tree is the same without.
+  std::uint64_t forks = 0;
   [[nodiscard]] std::string to_string() const;
 };
 

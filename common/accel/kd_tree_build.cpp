@@ -10,6 +10,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdlib>
+#include <cstdint>
 #include <cstring>
 #include <exception>
 #include <memory>
@@ -24,6 +25,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/task_arena.h>
 
 #include "common/accel/kd_tree.h"
 #include "common/base/error.h"
@@ -67,7 +69,6 @@ struct SplitChoice {
 // SAH cost 83.4 -> 84.0; radiance-cabin 1.5 s -> 0.7 s, SAH 81.3 -> 80.0. 64 bins cost the
 // same time but up to 9% more SAH (spd-balls-s3); 16384 or 65536 gain no quality.
 constexpr int kBins = 256;
-constexpr std::size_t kExactBelow = 4096;
 // The most references the bit-mask stage (MaskBuilder) takes: two 64-bit words.
 constexpr int kMaskWords = 4;
 constexpr std::size_t kMaxMaskRefs = 64 * kMaskWords;
@@ -93,7 +94,20 @@ struct BuildContext {
   bool avx512 = false;
   bool avx2 = false;
   float leaf_box_saving = 0.0f;  // KdBuildOptions::leaf_box_saving (0: no LeafBox)
+  // Blocks of more references than this build large children as blocks of their own, side by
+  // side (BlockBuilder::fork): a quarter of the triangles, so a scene of a few blocks (one, if
+  // it is small) does not leave threads idle while one builds its last block. Smaller blocks
+  // have other blocks beside them; there the copies the fork makes measured slower (spd-gears,
+  // radiance-office 1.1x the time at 2 threads). With one thread: never (they cost 1.05-1.5x
+  // the time). The tree and its statistics are the same either way.
+  std::size_t fork_above = 0;
 };
+
+// The threads a build may use (KdBuildOptions::threads or TBB's own limit).
+std::size_t build_threads() {
+  return std::min(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism),
+                  static_cast<std::size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)));
+}
 
 // The vector code a build takes: KdBuildOptions::simd, up to its simd_limit, as far as the CPU
 // goes (AVX-512 F, DQ, VL and BW or AVX2 with FMA and BMI2, as the tracer's kernels).
@@ -364,8 +378,34 @@ struct Block {
   std::vector<Aabb> boxes;  // the leaves' boxes (kBoxSlot), not yet widened
   std::uint64_t leaves = 0;
   std::uint64_t empty_leaves = 0;
+  std::uint64_t forks = 0;  // BlockBuilder::fork
   int max_depth = 0;
   double cost_area = 0;  // SAH cost times the area of the tree's root box
+  // A forked child's subtree (BlockBuilder::fork) keeps its SAH cost terms in order instead of
+  // summing them, and its parent adds them where its own sum has got to: the same float sum,
+  // term by term, as one builder makes, so the cost does not depend on where blocks forked.
+  bool keep_terms = false;
+  std::vector<double> terms;
+
+  void add_cost(double term) {
+    if (keep_terms) {
+      terms.push_back(term);
+    } else {
+      cost_area += term;
+    }
+  }
+
+  // Empty, keeping the arrays' room.
+  void reset(bool keep) {
+    nodes.clear();
+    refs.clear();
+    boxes.clear();
+    terms.clear();
+    keep_terms = keep;
+    leaves = empty_leaves = forks = 0;
+    max_depth = 0;
+    cost_area = 0;
+  }
 
   // Makes nodes[index] a leaf over triangles tris[local[i]] (`local` ascending, so the leaf's
   // triangles are too), and adds its `count` references' share of the SAH cost. `content`: the
@@ -389,7 +429,7 @@ struct Block {
     for (std::uint32_t i : local) refs.push_back(tris[i]);
     ++leaves;
     if (local.empty()) ++empty_leaves;
-    cost_area += static_cast<double>(intersection_cost) * static_cast<double>(area) * static_cast<double>(count);
+    add_cost(static_cast<double>(intersection_cost) * static_cast<double>(area) * static_cast<double>(count));
   }
 };
 
@@ -405,6 +445,7 @@ class EventArena {
     return offset;
   }
   [[nodiscard]] Event* at(std::size_t offset) { return data_.get() + offset; }
+  [[nodiscard]] const Event* at(std::size_t offset) const { return data_.get() + offset; }
   [[nodiscard]] std::size_t mark() const { return size_; }
   void release(std::size_t mark) { size_ = mark; }
 
@@ -548,6 +589,7 @@ struct Scratch {
   std::vector<std::uint32_t> mask_refs;  // bit -> index into the block's triangle list
   MaskPlanes mask_planes[3];
   std::vector<MaskTask> mask_stack;
+  Block part;  // a forked child's subtree (BlockBuilder::fork), spliced into its parent's block
 
   // What the buffers hold (their capacity), for ScratchPool's limit.
   [[nodiscard]] std::size_t bytes() const {
@@ -555,6 +597,7 @@ struct Scratch {
     const auto add = [&n](const auto& v) { n += v.capacity() * sizeof(v[0]); };
     add(side), add(sort_buffer), add(leaf), add(sort_bits), add(bounds), add(restore), add(straddlers), add(slot);
     add(clip_left), add(clip_right), add(new_left), add(new_right), add(mask_refs), add(mask_stack);
+    add(part.nodes), add(part.refs), add(part.boxes), add(part.terms);
     for (int axis = 0; axis < 3; ++axis) {
       add(kept_left[axis]), add(kept_right[axis]);
       const MaskPlanes& p = mask_planes[axis];
@@ -568,9 +611,10 @@ struct Scratch {
 // Scratch buffers kept from one block to the next and from one build to the next. Fresh
 // buffers in every build cost a small scene's build most of its time in page faults (bunny,
 // 3,674 triangles: 746 faults, about 2 ms of a 5 ms build), and a moving mesh's tree is
-// rebuilt frame after frame. A block takes one for its whole run (it never waits on other
-// tasks), so there are never more than the blocks built at once; a buffer set above kKeep
-// bytes is freed instead of kept, and so is one a failed block leaves behind.
+// rebuilt frame after frame. A block takes one for its whole run, and a fork one for each
+// child (BlockBuilder::fork), so there are never more than the blocks being built and the
+// forks waiting on their children; a buffer set above kKeep bytes is freed instead of kept,
+// and so is one a failed block leaves behind.
 class ScratchPool {
  public:
   static constexpr std::size_t kKeep = std::size_t{64} << 20;
@@ -1648,7 +1692,7 @@ class MaskBuilder {
         leaf<W>(task.index, mask, count, area, box);
         continue;
       }
-      out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
+      out_.add_cost(static_cast<double>(options.traversal_cost) * static_cast<double>(area));
       // Below the plane, or in it on the side the split chose, go left; above it, or in it
       // otherwise, right; straddlers both.
       const Scratch::MaskPlanes& plane = s_.mask_planes[split.axis];
@@ -1699,7 +1743,7 @@ class MaskBuilder {
 class BlockBuilder {
  public:
   BlockBuilder(const BuildContext& ctx, Scratch& scratch, std::span<const std::uint32_t> tris, Block& out)
-      : ctx_(ctx), s_(scratch), tris_(tris), out_(out) {}
+      : ctx_(ctx), s_(scratch), tris_(tris), out_(out), forks_(tris.size() > ctx.fork_above) {}
 
   void run(const Aabb& box, int depth) {
     const std::size_t n = tris_.size();
@@ -1723,6 +1767,24 @@ class BlockBuilder {
     s_.restore.clear();
     out_.nodes.assign(1, KdNode{});
     node(0, off, len, n, box, depth);
+  }
+
+  // Builds the subtree of a node of another block (`from`: its builder's buffers, its event
+  // lists at `off`, its references' bounds `bounds`) as this block, exactly as that builder
+  // would have gone on (fork).
+  void resume(const Scratch& from, const std::size_t off[3], const std::size_t len[3], std::size_t count,
+              const Aabb& box, int depth) {
+    const std::size_t n = tris_.size();
+    s_.arena.release(0);
+    if (s_.side.size() < n) s_.side.resize(n);
+    std::size_t own[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      own[axis] = s_.arena.alloc(len[axis]);
+      if (len[axis] > 0) std::memcpy(s_.arena.at(own[axis]), from.arena.at(off[axis]), len[axis] * sizeof(Event));
+    }
+    s_.restore.clear();
+    out_.nodes.assign(1, KdNode{});
+    node(0, own, len, count, box, depth);
   }
 
  private:
@@ -1770,7 +1832,7 @@ class BlockBuilder {
       leaf(index, off, len, count, area, box);
       return;
     }
-    out_.cost_area += static_cast<double>(options.traversal_cost) * static_cast<double>(area);
+    out_.add_cost(static_cast<double>(options.traversal_cost) * static_cast<double>(area));
 
     const float p = split.pos;
     const int full_side = one_sided(s_.arena.at(off[split.axis]), len[split.axis], p, split.planar_left);
@@ -1948,12 +2010,72 @@ class BlockBuilder {
       bounds[ref] = signless(clip_left[k]);
     }
     const std::size_t restore_end = s_.restore.size();
-    node(first, left_off, left_len, left_count, left_box, depth + 1);
-    for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].right;
-    node(first + 1, right_off, right_len, right_count, right_box, depth + 1);
+    if (forks_ && left_count >= kForkAbove && right_count >= kForkAbove) {
+      const std::size_t* const child_off[2] = {left_off, right_off};
+      const std::size_t* const child_len[2] = {left_len, right_len};
+      const std::size_t child_count[2] = {left_count, right_count};
+      const Aabb child_box[2] = {left_box, right_box};
+      fork(first, child_off, child_len, child_count, child_box, depth + 1, restore, restore_end);
+    } else {
+      node(first, left_off, left_len, left_count, left_box, depth + 1);
+      for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].right;
+      node(first + 1, right_off, right_len, right_count, right_box, depth + 1);
+    }
     for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].before;
     s_.restore.resize(restore);
     s_.arena.release(mark);
+  }
+
+  // Both children of node `first / 2`'s split, each at least this big, are built as blocks of
+  // their own, side by side (a small scene is one block, and a block was one thread's work).
+  // The same subtrees, nodes and references in the same places as one builder would make them;
+  // only the SAH cost's float sum adds its terms in another order.
+  static constexpr std::size_t kForkAbove = 512;
+
+  // The children (left, right) at nodes `first` and `first + 1`, their lists in this builder's
+  // arena, the straddlers' bounds in the left child in s_.bounds and in the right one in
+  // s_.restore[restore, restore_end).
+  void fork(std::size_t first, const std::size_t* const off[2], const std::size_t* const len[2],
+            const std::size_t count[2], const Aabb box[2], int depth, std::size_t restore, std::size_t restore_end) {
+    // Each child's buffers and subtree (Scratch::part) are leased until the splice.
+    const ScratchPool::Lease lease[2] = {ScratchPool::Lease(ScratchPool::instance()),
+                                         ScratchPool::Lease(ScratchPool::instance())};
+    const auto build = [&](int c) {
+      Scratch& child = *lease[c];
+      child.bounds = s_.bounds;
+      if (c == 1) {
+        for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
+      }
+      child.part.reset(true);
+      BlockBuilder(ctx_, child, tris_, child.part).resume(s_, off[c], len[c], count[c], box[c], depth);
+    };
+    tbb::parallel_invoke([&] { build(0); }, [&] { build(1); });
+    ++out_.forks;
+    splice(first, (*lease[0]).part);
+    splice(first + 1, (*lease[1]).part);
+  }
+
+  // Appends a child's block to this one, its root at node `slot`, the rest after this block's
+  // nodes and references so far (where this builder would have put them).
+  void splice(std::size_t slot, const Block& part) {
+    const std::uint64_t node_base = out_.nodes.size();
+    const std::uint64_t ref_base = out_.refs.size();
+    const auto box_base = static_cast<std::uint32_t>(out_.boxes.size());
+    const auto relocate = [&](KdNode n) {
+      if (n.is_leaf()) return KdNode::leaf(n.prim_offset() + ref_base, n.tri_count(), n.has_box());
+      return KdNode::inner(n.left() - 1 + node_base, n.axis(), n.split);
+    };
+    out_.nodes[slot] = relocate(part.nodes[0]);
+    for (std::size_t i = 1; i < part.nodes.size(); ++i) out_.nodes.push_back(relocate(part.nodes[i]));
+    for (const std::uint32_t r : part.refs) {
+      out_.refs.push_back((r & Block::kBoxSlot) != 0 ? Block::kBoxSlot | ((r & ~Block::kBoxSlot) + box_base) : r);
+    }
+    out_.boxes.insert(out_.boxes.end(), part.boxes.begin(), part.boxes.end());
+    out_.leaves += part.leaves;
+    out_.empty_leaves += part.empty_leaves;
+    out_.forks += part.forks;
+    out_.max_depth = std::max(out_.max_depth, part.max_depth);
+    for (const double t : part.terms) out_.add_cost(t);
   }
 
   // The side every reference of the node lies on for the plane `axis` = `p` (`ev`: that axis's
@@ -2051,6 +2173,7 @@ class BlockBuilder {
   Scratch& s_;
   std::span<const std::uint32_t> tris_;
   Block& out_;
+  const bool forks_;  // large children built side by side (BuildContext::fork_above)
 };
 
 // A node above the exact blocks: an inner node with a binned plane, or a block.
@@ -2110,7 +2233,7 @@ class TopBuilder {
   static constexpr std::size_t kParallelNode = 65536;
   static constexpr std::size_t kChunk = 16384;
   // Subtrees this big are built as tasks of their own.
-  static constexpr std::size_t kParallelSubtree = 4096;
+  static constexpr std::size_t kParallelSubtree = 1024;
 
   struct Bins {
     std::uint32_t start[3][kMaxBins];  // references whose (clamped) lower bound is in the bin
@@ -2419,6 +2542,7 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
   if (t.axis < 0) {
     stats.leaves += t.block.leaves;
     stats.empty_leaves += t.block.empty_leaves;
+    stats.forks += t.block.forks;
     stats.leaf_boxes += t.block.boxes.size();
     stats.max_depth = std::max(stats.max_depth, t.block.max_depth);
     cost_area += t.block.cost_area;
@@ -2575,9 +2699,9 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
-  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, kExactBelow, sah_scale_for(root),
+  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, static_cast<std::size_t>(std::max(options.exact_below, 1)), sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
-                   std::max(options.leaf_box_saving, 0.0f)};
+                   std::max(options.leaf_box_saving, 0.0f), build_threads() > 1 ? count / 4 : SIZE_MAX};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;

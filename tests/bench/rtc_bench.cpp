@@ -265,6 +265,17 @@ int run(int argc, char** argv) {
                  "where given) and time its packets and single rays rep by rep beside the first tree's (paired ratios; "
                  "the answers must be the same)")
       ->check(CLI::Range(0.0f, 1e9f));
+  app.add_option("--kd-exact-below", kd_options.exact_below,
+                 "nodes of more references than this are split with the binned SAH, smaller ones built as blocks "
+                 "with the exact event sweep")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  int ab_exact_below = -1;
+  app.add_option("--ab-kd-exact-below", ab_exact_below,
+                 "primary and shadow modes: also build a tree with this --kd-exact-below (and the other --ab-kd-* "
+                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired "
+                 "ratios; the answers must be the same)")
+      ->check(CLI::Range(1, 1 << 30));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
@@ -312,7 +323,7 @@ int run(int argc, char** argv) {
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
-  const bool ab_tree = ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f;
+  const bool ab_tree = ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -408,6 +419,7 @@ int run(int argc, char** argv) {
   rtc::KdBuildOptions ab_options = kd_options;
   if (ab_leaf_box_saving >= 0.0f) ab_options.leaf_box_saving = ab_leaf_box_saving;
   if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
+  if (ab_exact_below >= 0) ab_options.exact_below = ab_exact_below;
   if (ab_tree) {
     fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
@@ -442,8 +454,10 @@ int run(int argc, char** argv) {
                          {"kd_intersection_cost", kd_options.intersection_cost},
                          {"kd_mask_below", kd_options.effective_mask_below()},
                          {"kd_empty_cut", kd_options.empty_cut},
+                         {"kd_exact_below", kd_options.exact_below},
                          {"kd_leaf_box_saving", kd_options.leaf_box_saving},
                          {"kd_leaf_boxes", kd.leaf_boxes},
+                         {"kd_forks", kd.forks},
                          {"reps", reps}};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;
@@ -601,7 +615,9 @@ int run(int argc, char** argv) {
         const double mrays_single = rays / rtc::bench::median_of(times[first_ab + 1]) / 1e3;
         out["ab"] = {{"kd_leaf_box_saving", ab_options.leaf_box_saving},
                      {"kd_empty_cut", ab_options.empty_cut},
+                     {"kd_exact_below", ab_options.exact_below},
                      {"kd_nodes", kd_ab.nodes},
+                     {"kd_sah_cost", kd_ab.sah_cost},
                      {"kd_leaf_boxes", kd_ab.leaf_boxes},
                      {"mrays_per_s", mrays},
                      {"mrays_per_s_single", mrays_single},
@@ -610,10 +626,11 @@ int run(int argc, char** argv) {
                      {"answers_differ", differ}};
         ab_differ = ab_differ || differ != 0;
         if (!json) {
-          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g: packets %.2f M rays/s (%.3fx the "
-                      "first tree's, paired), single rays %.2f (%.3fx)%s\n",
+          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d: packets %.2f M "
+                      "rays/s (%.3fx the first tree's, paired), single rays %.2f (%.3fx)%s\n",
                       mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
-                      static_cast<double>(ab_options.empty_cut), mrays, packet_ratio, mrays_single,
+                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below,
+                      mrays, packet_ratio, mrays_single,
                       single_ratio,
                       differ != 0 ? ", ANSWERS DIFFER" : "");
         }
@@ -902,10 +919,11 @@ int run(int argc, char** argv) {
   }
   if (ab_differ) {
     std::fprintf(stderr,
-                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g the answers differ "
-                 "(between the trees, or between packets and single rays)\n",
+                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below %d "
+                 "and %d the answers differ (between the trees, or between packets and single rays)\n",
                  static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
-                 static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut));
+                 static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
+                 kd_options.exact_below, ab_options.exact_below);
     return 4;
   }
   return 0;

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
---ab-kd-leaf-box-saving or --ab-kd-empty-cut, whichever the two trees differ in), with the
+--ab-kd-leaf-box-saving, --ab-kd-empty-cut or --ab-kd-exact-below, whichever the two trees
+differ in), with the
 medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
@@ -14,12 +15,19 @@ def main() -> None:
     if not rows:
         sys.exit(f"{sys.argv[1]}: no results")
     first = rows[0]
-    # Older lines (before --ab-kd-empty-cut) carry no kd_empty_cut: leaf boxes.
-    cut = first.get("kd_empty_cut") != first["ab"].get("kd_empty_cut", first.get("kd_empty_cut"))
-    key, size, size_label = (("kd_empty_cut", "kd_nodes", "nodes") if cut else
-                             ("kd_leaf_box_saving", "kd_leaf_boxes", "boxes"))
+    # Older lines (before --ab-kd-empty-cut, --ab-kd-exact-below) carry neither key: leaf boxes.
+    def differs(k):
+        return k in first and first.get(k) != first["ab"].get(k, first.get(k))
+
+    if differs("kd_exact_below"):
+        key, title = "kd_exact_below", "Exact sweep below"
+    elif differs("kd_empty_cut"):
+        key, title = "kd_empty_cut", "Empty gaps cut without the sweep"
+    else:
+        key, title = "kd_leaf_box_saving", "Leaf boxes"
+    cut = key != "kd_leaf_box_saving"  # trees of different shapes: their node counts
+    size, size_label = ("kd_nodes", "nodes") if cut else ("kd_leaf_boxes", "boxes")
     a, b = first[key], first["ab"][key]
-    title = "Empty gaps cut without the sweep" if cut else "Leaf boxes"
     print(f"# {title}: --{key.replace('_', '-')} {b:g} against {a:g}\n")
     print(f"Regenerate with `{sys.argv[2]}`. {first['threads']} thread(s), isa {first['isa']}, "
           f"{first['reps']} reps, process CPU time. Each view is one process: both trees are built, then "
@@ -36,6 +44,8 @@ def main() -> None:
         ratios[r["mode"]][0].append(ab["speed_vs_first_paired"])
         ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
         sizes = f"{r[size]:,} → {ab[size]:,}" if cut else f"{ab[size]:,}"
+        if key == "kd_exact_below" and "kd_sah_cost" in ab:
+            sizes += f" (SAH {r['kd_sah_cost']:.2f} → {ab['kd_sah_cost']:.2f})"
         print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {sizes} | "
               f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
               f"{r['mrays_per_s_single']:.2f} | {ab['mrays_per_s_single']:.2f} | "

@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -611,6 +612,42 @@ TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
     }
     const KdTree again = KdTree::build(a.positions, a.triangles, o);
     same_tree(first, again);
+  }
+}
+
+// A small scene is one block of the exact stage; with more than one thread its large nodes'
+// children are built by other threads (BlockBuilder::fork) and spliced back in. The tree, its
+// records and every statistic (the SAH cost's float sum too) are those one thread makes.
+TEST(KdTree, BlocksForkedAcrossThreadsBuildTheOneThreadTree) {
+  const Soup soups[] = {random_soup(21, 3500, 0.05f), planar_piles(22, 3000), random_soup(23, 12000, 0.01f)};  // the last: a few blocks
+  for (const Soup& s : soups) {
+    for (const bool clip : {true, false}) {
+      SCOPED_TRACE(testing::Message() << s.triangles.size() << " triangles, clip " << clip);
+      KdBuildOptions one;
+      one.clip = clip;
+      one.threads = 1;
+      KdBuildOptions two = one;
+      two.threads = 2;
+      const KdTree a = KdTree::build(s.positions, s.triangles, one);
+      const KdTree b = KdTree::build(s.positions, s.triangles, two);
+      EXPECT_EQ(a.stats().forks, 0u);
+      if (std::thread::hardware_concurrency() >= 2) {
+        EXPECT_GT(b.stats().forks, 0u);
+      }
+      ASSERT_EQ(a.nodes().size(), b.nodes().size());
+      for (std::size_t i = 0; i < a.nodes().size(); ++i) {
+        ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits) << "node " << i;
+        ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count) << "node " << i;
+      }
+      ASSERT_EQ(refs_of(a), refs_of(b));
+      ASSERT_EQ(a.leaf_records().size(), b.leaf_records().size());
+      EXPECT_EQ(std::memcmp(a.leaf_records().data(), b.leaf_records().data(), a.leaf_records().size_bytes()), 0);
+      EXPECT_EQ(a.stats().sah_cost, b.stats().sah_cost);
+      EXPECT_EQ(a.stats().leaves, b.stats().leaves);
+      EXPECT_EQ(a.stats().empty_leaves, b.stats().empty_leaves);
+      EXPECT_EQ(a.stats().leaf_boxes, b.stats().leaf_boxes);
+      EXPECT_EQ(a.stats().max_depth, b.stats().max_depth);
+    }
   }
 }
 
