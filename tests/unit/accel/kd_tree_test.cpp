@@ -581,20 +581,27 @@ Soup signed_zero_cells() {
   return s;
 }
 
+// The same nodes, references, leaf records and statistics, bit for bit.
+void expect_same_tree(const KdTree& x, const KdTree& y) {
+  ASSERT_EQ(x.nodes().size(), y.nodes().size());
+  for (std::size_t i = 0; i < x.nodes().size(); ++i) {
+    ASSERT_EQ(x.nodes()[i].bits, y.nodes()[i].bits) << "node " << i;
+    ASSERT_EQ(x.nodes()[i].count, y.nodes()[i].count) << "node " << i;
+  }
+  ASSERT_EQ(refs_of(x), refs_of(y));
+  ASSERT_EQ(x.leaf_records().size(), y.leaf_records().size());
+  EXPECT_EQ(std::memcmp(x.leaf_records().data(), y.leaf_records().data(), x.leaf_records().size_bytes()), 0);
+  EXPECT_EQ(x.stats().sah_cost, y.stats().sah_cost);
+  EXPECT_EQ(x.stats().leaves, y.stats().leaves);
+  EXPECT_EQ(x.stats().empty_leaves, y.stats().empty_leaves);
+  EXPECT_EQ(x.stats().leaf_boxes, y.stats().leaf_boxes);
+  EXPECT_EQ(x.stats().max_depth, y.stats().max_depth);
+}
+
 // The build keeps its scratch buffers from one build to the next (ScratchPool): a tree built
 // after other builds have used and left them behind is the tree a fresh process builds.
 TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
   const Soup a = random_soup(11, 3000, 0.05f);  // one block
-  const auto same_tree = [](const KdTree& x, const KdTree& y) {
-    ASSERT_EQ(x.nodes().size(), y.nodes().size());
-    for (std::size_t i = 0; i < x.nodes().size(); ++i) {
-      ASSERT_EQ(x.nodes()[i].bits, y.nodes()[i].bits) << "node " << i;
-      ASSERT_EQ(x.nodes()[i].count, y.nodes()[i].count) << "node " << i;
-    }
-    ASSERT_EQ(refs_of(x), refs_of(y));
-    ASSERT_EQ(x.leaf_records().size(), y.leaf_records().size());
-    EXPECT_EQ(std::memcmp(x.leaf_records().data(), y.leaf_records().data(), x.leaf_records().size_bytes()), 0);
-  };
   for (const bool clip : {true, false}) {
     SCOPED_TRACE(testing::Message() << "clip " << clip);
     KdBuildOptions o;
@@ -611,7 +618,7 @@ TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
       (void)KdTree::build(big.positions, big.triangles, other);
     }
     const KdTree again = KdTree::build(a.positions, a.triangles, o);
-    same_tree(first, again);
+    expect_same_tree(first, again);
   }
 }
 
@@ -634,19 +641,7 @@ TEST(KdTree, BlocksForkedAcrossThreadsBuildTheOneThreadTree) {
       if (std::thread::hardware_concurrency() >= 2) {
         EXPECT_GT(b.stats().forks, 0u);
       }
-      ASSERT_EQ(a.nodes().size(), b.nodes().size());
-      for (std::size_t i = 0; i < a.nodes().size(); ++i) {
-        ASSERT_EQ(a.nodes()[i].bits, b.nodes()[i].bits) << "node " << i;
-        ASSERT_EQ(a.nodes()[i].count, b.nodes()[i].count) << "node " << i;
-      }
-      ASSERT_EQ(refs_of(a), refs_of(b));
-      ASSERT_EQ(a.leaf_records().size(), b.leaf_records().size());
-      EXPECT_EQ(std::memcmp(a.leaf_records().data(), b.leaf_records().data(), a.leaf_records().size_bytes()), 0);
-      EXPECT_EQ(a.stats().sah_cost, b.stats().sah_cost);
-      EXPECT_EQ(a.stats().leaves, b.stats().leaves);
-      EXPECT_EQ(a.stats().empty_leaves, b.stats().empty_leaves);
-      EXPECT_EQ(a.stats().leaf_boxes, b.stats().leaf_boxes);
-      EXPECT_EQ(a.stats().max_depth, b.stats().max_depth);
+      expect_same_tree(a, b);
     }
   }
 }
