@@ -275,8 +275,9 @@ struct KdBuildStats {
   double mean_tris_per_leaf = 0;  ///< over non-empty leaves
   double sah_cost = 0;            ///< expected cost of a random ray through the root
   std::uint64_t bytes = 0;        ///< what the tree holds: nodes, references and leaf records
-  /// Nodes of the exact stage whose two children were built side by side by other threads (a
-  /// small scene is one block of that stage); the tree is the same without.
+  /// Nodes of the exact stage whose two children were built as tasks of their own, side by side
+  /// where threads were free (a small scene is one block of that stage); the tree is the same
+  /// without.
   std::uint64_t forks = 0;
   [[nodiscard]] std::string to_string() const;
 };

@@ -1,7 +1,7 @@
 // SAH kd-tree build. Big nodes take their plane from a binned SAH over triangle references
 // (Shevtsov, Soupikov, Kapustin 2007, section 3), binned and partitioned in parallel near the
 // root; subtrees of at most a few thousand references take the exact O(N log N) event sweep of
-// Wald & Havran 2006 in flat per-thread buffers, with straddling triangles clipped to each
+// Wald & Havran 2006 in flat buffers kept between builds, with straddling triangles clipped to each
 // child ("perfect splits", section 4.3); subtrees of at most 64 references (256 without
 // clipping) finish with the same SAH over bit masks of their references (Zhou, Hou, Wang, Guo
 // 2008, section 4.3), without further clipping. Parallel over subtrees (TBB).
@@ -499,8 +499,8 @@ struct MaskBits {
   }
 };
 
-// One thread's buffers, reused by every block it sweeps (a block never waits on other tasks,
-// so one thread never interleaves two blocks).
+// One block's buffers (leased from ScratchPool for the block's run), reused by the blocks
+// that lease them later.
 struct Scratch {
   EventArena arena;
   std::vector<std::uint32_t> side;  // a reference's Side in the node being split
@@ -614,7 +614,7 @@ struct Scratch {
 // rebuilt frame after frame. A block takes one for its whole run, and a fork one for each
 // child (BlockBuilder::fork), so there are never more than the blocks being built and the
 // forks waiting on their children; a buffer set above kKeep bytes is freed instead of kept,
-// and so is one a failed block leaves behind.
+// and so is one a failed block leaves behind, and any beyond max_kept_.
 class ScratchPool {
  public:
   static constexpr std::size_t kKeep = std::size_t{64} << 20;
@@ -638,9 +638,10 @@ class ScratchPool {
     int exceptions_ = std::uncaught_exceptions();
   };
 
+  // Never destroyed: a build from another static object's destructor still finds it.
   static ScratchPool& instance() {
-    static ScratchPool pool;
-    return pool;
+    static ScratchPool* const pool = new ScratchPool;
+    return *pool;
   }
 
  private:
@@ -655,11 +656,20 @@ class ScratchPool {
     }
     return std::make_unique<Scratch>();
   }
-  void give(std::unique_ptr<Scratch> s) {
+  // Keeps `s` (or frees it: above kKeep bytes, beyond kMaxKept sets, or when keeping it fails).
+  void give(std::unique_ptr<Scratch> s) noexcept {
     if (s->bytes() > kKeep) return;
-    const std::lock_guard lock(mutex_);
-    free_.push_back(std::move(s));
+    try {
+      const std::lock_guard lock(mutex_);
+      if (free_.size() < max_kept_) free_.push_back(std::move(s));
+    } catch (...) {  // no room for the pointer: s is freed
+    }
   }
+
+  // More than are ever leased at once in practice: a block per thread, and the forks of the few
+  // blocks that fork (each holds two leases per level while its children run; bunny's build at
+  // 2 threads needs more than 8, and a set dropped here is a set the next build grows again).
+  const std::size_t max_kept_ = 4 * static_cast<std::size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)) + 32;
 
   std::mutex mutex_;
   std::vector<std::unique_ptr<Scratch>> free_;
@@ -2026,10 +2036,10 @@ class BlockBuilder {
     s_.arena.release(mark);
   }
 
-  // Both children of node `first / 2`'s split, each at least this big, are built as blocks of
-  // their own, side by side (a small scene is one block, and a block was one thread's work).
-  // The same subtrees, nodes and references in the same places as one builder would make them;
-  // only the SAH cost's float sum adds its terms in another order.
+  // Both children of a split, where each holds at least this many references, are built as
+  // blocks of their own, side by side (a small scene is one block, and a block was one
+  // thread's work): the same subtrees, nodes, references and SAH cost terms in the same places
+  // and order as one builder makes them.
   static constexpr std::size_t kForkAbove = 512;
 
   // The children (left, right) at nodes `first` and `first + 1`, their lists in this builder's
@@ -2040,16 +2050,29 @@ class BlockBuilder {
     // Each child's buffers and subtree (Scratch::part) are leased until the splice.
     const ScratchPool::Lease lease[2] = {ScratchPool::Lease(ScratchPool::instance()),
                                          ScratchPool::Lease(ScratchPool::instance())};
+    (*lease[0]).part.reset(true);
+    (*lease[1]).part.reset(true);
     const auto build = [&](int c) {
       Scratch& child = *lease[c];
-      child.bounds = s_.bounds;
+      // The bounds of the child's own references only (each has one start or planar event
+      // per axis), so a fork costs its child's size, not its block's.
+      if (child.bounds.size() < tris_.size()) child.bounds.resize(tris_.size());
+      const Event* ev = s_.arena.at(off[c][0]);
+      for (std::size_t i = 0; i < len[c][0]; ++i) {
+        if (ev[i].type() != kEnd) child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
+      }
       if (c == 1) {
         for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
       }
-      child.part.reset(true);
       BlockBuilder(ctx_, child, tris_, child.part).resume(s_, off[c], len[c], count[c], box[c], depth);
     };
+    // Not isolated: a thread waiting here takes whatever task is there, a nested fork's child
+    // too (isolating each fork cost Wuson 1.31x the time at 2 threads); ScratchPool caps what
+    // it keeps.
     tbb::parallel_invoke([&] { build(0); }, [&] { build(1); });
+    // A build whose other task threw is cancelled, and the children may not have run: that
+    // build ends in the other task's exception, not in a splice of nothing.
+    if ((*lease[0]).part.nodes.empty() || (*lease[1]).part.nodes.empty()) throw Error("kd-tree build cancelled");
     ++out_.forks;
     splice(first, (*lease[0]).part);
     splice(first + 1, (*lease[1]).part);
@@ -2221,6 +2244,8 @@ class TopBuilder {
       node->child[0] = build(std::move(left), left_box, depth + 1);
       node->child[1] = build(std::move(right), right_box, depth + 1);
     }
+    // Cancelled (another task threw): that exception ends the build.
+    if (!node->child[0] || !node->child[1]) throw Error("kd-tree build cancelled");
     node->nodes_below = 2 + node->child[0]->nodes_below + node->child[1]->nodes_below;
     node->refs = node->child[0]->refs + node->child[1]->refs;
     return node;
@@ -2233,6 +2258,9 @@ class TopBuilder {
   static constexpr std::size_t kParallelNode = 65536;
   static constexpr std::size_t kChunk = 16384;
   // Subtrees this big are built as tasks of their own.
+  // (Only the top nodes above KdBuildOptions::exact_below reach this test, so with the default
+  // 4096 every one of them is a task; lower values of exact_below make tasks of their children
+  // down to this size.)
   static constexpr std::size_t kParallelSubtree = 1024;
 
   struct Bins {
