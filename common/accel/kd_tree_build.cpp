@@ -2067,7 +2067,7 @@ class BlockBuilder {
       BlockBuilder(ctx_, child, tris_, child.part).resume(s_, off[c], len[c], count[c], box[c], depth);
     };
     // Not isolated: a thread waiting here takes whatever task is there, a nested fork's child
-    // too (isolating each fork cost Wuson 1.31x the time at 2 threads); ScratchPool caps what
+    // too (isolating each fork cost Wuson 1.40x the time at 2 threads); ScratchPool caps what
     // it keeps.
     tbb::parallel_invoke([&] { build(0); }, [&] { build(1); });
     // A build whose other task threw is cancelled, and the children may not have run: that
