@@ -16,6 +16,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <optional>
 #include <sstream>
 
 #include <immintrin.h>
@@ -25,6 +26,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/task_group.h>
 #include <tbb/task_arena.h>
 
 #include "common/accel/kd_tree.h"
@@ -611,25 +613,33 @@ struct Scratch {
 // Scratch buffers kept from one block to the next and from one build to the next. Fresh
 // buffers in every build cost a small scene's build most of its time in page faults (bunny,
 // 3,674 triangles: 746 faults, about 2 ms of a 5 ms build), and a moving mesh's tree is
-// rebuilt frame after frame. A block takes one for its whole run, and a fork one for each
-// child (BlockBuilder::fork), so there are never more than the blocks being built and the
-// forks waiting on their children; a buffer set above kKeep bytes is freed instead of kept,
-// and so is one a failed block leaves behind, and any beyond max_kept_.
+// rebuilt frame after frame. A block takes one for its whole run, and a fork one for its
+// right child where one is spare (BlockBuilder::fork), so there are never more sets than
+// blocks built at once plus one per thread; a buffer set above kKeep bytes is freed instead of
+// kept, and so is one a failed block leaves behind.
 class ScratchPool {
  public:
   static constexpr std::size_t kKeep = std::size_t{64} << 20;
 
-  // A set of buffers for one block, given back when it goes out of scope.
+  // A set of buffers for one block, given back when it goes out of scope; `spare`: only a set
+  // the pool has spare (see spare()), else none (check with has()).
   class Lease {
    public:
-    explicit Lease(ScratchPool& pool) : pool_(pool), scratch_(pool.take()) {}
+    explicit Lease(ScratchPool& pool, bool spare = false)
+        : pool_(pool), scratch_(spare ? pool.spare() : pool.take()) {}
     Lease(const Lease&) = delete;
     Lease& operator=(const Lease&) = delete;
     ~Lease() {
+      if (!scratch_) return;
       // Unwinding: a block stopped half-way may leave buffers whose invariants do not hold
       // (sort_bits all zero), so they are not kept.
-      if (std::uncaught_exceptions() == exceptions_) pool_.give(std::move(scratch_));
+      if (std::uncaught_exceptions() == exceptions_) {
+        pool_.give(std::move(scratch_));
+      } else {
+        pool_.drop(std::move(scratch_));
+      }
     }
+    [[nodiscard]] bool has() const { return scratch_ != nullptr; }
     Scratch& operator*() const { return *scratch_; }
 
    private:
@@ -646,33 +656,48 @@ class ScratchPool {
 
  private:
   std::unique_ptr<Scratch> take() {
-    {
-      const std::lock_guard lock(mutex_);
-      if (!free_.empty()) {
-        std::unique_ptr<Scratch> s = std::move(free_.back());
-        free_.pop_back();
-        return s;
-      }
-    }
-    return std::make_unique<Scratch>();
+    const std::lock_guard lock(mutex_);
+    return take_locked();
   }
-  // Keeps `s` (or frees it: above kKeep bytes, beyond kMaxKept sets, or when keeping it fails).
+  // A set for a fork's child: a kept one, or a new one while fewer sets exist than threads may
+  // build (a fork is worth it where another thread is idle, and then its set is spare); none
+  // otherwise. So a first build grows at most one set per thread, as blocks alone do.
+  std::unique_ptr<Scratch> spare() {
+    const std::lock_guard lock(mutex_);
+    if (free_.empty() && live_ >= static_cast<std::size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1))) {
+      return nullptr;
+    }
+    return take_locked();
+  }
+  std::unique_ptr<Scratch> take_locked() {
+    if (!free_.empty()) {
+      std::unique_ptr<Scratch> s = std::move(free_.back());
+      free_.pop_back();
+      return s;
+    }
+    std::unique_ptr<Scratch> s = std::make_unique<Scratch>();
+    ++live_;
+    return s;
+  }
+  // Keeps `s` (or frees it: above kKeep bytes, or when keeping it fails).
   void give(std::unique_ptr<Scratch> s) noexcept {
-    if (s->bytes() > kKeep) return;
+    if (s->bytes() > kKeep) return drop(std::move(s));
     try {
       const std::lock_guard lock(mutex_);
-      if (free_.size() < max_kept_) free_.push_back(std::move(s));
+      free_.push_back(std::move(s));
     } catch (...) {  // no room for the pointer: s is freed
+      drop(std::move(s));
     }
   }
-
-  // More than are ever leased at once in practice: a block per thread, and the forks of the few
-  // blocks that fork (each holds two leases per level while its children run; bunny's build at
-  // 2 threads needs more than 8, and a set dropped here is a set the next build grows again).
-  const std::size_t max_kept_ = 4 * static_cast<std::size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)) + 32;
+  void drop(std::unique_ptr<Scratch> s) noexcept {
+    s.reset();
+    const std::lock_guard lock(mutex_);
+    --live_;
+  }
 
   std::mutex mutex_;
   std::vector<std::unique_ptr<Scratch>> free_;
+  std::size_t live_ = 0;  // sets in existence: kept or leased
 };
 
 std::uint32_t sort_key(float pos) {
@@ -1779,22 +1804,14 @@ class BlockBuilder {
     node(0, off, len, n, box, depth);
   }
 
-  // Builds the subtree of a node of another block (`from`: its builder's buffers, its event
-  // lists at `off`, its references' bounds `bounds`) as this block, exactly as that builder
-  // would have gone on (fork).
-  void resume(const Scratch& from, const std::size_t off[3], const std::size_t len[3], std::size_t count,
-              const Aabb& box, int depth) {
-    const std::size_t n = tris_.size();
-    s_.arena.release(0);
-    if (s_.side.size() < n) s_.side.resize(n);
-    std::size_t own[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      own[axis] = s_.arena.alloc(len[axis]);
-      if (len[axis] > 0) std::memcpy(s_.arena.at(own[axis]), from.arena.at(off[axis]), len[axis] * sizeof(Event));
-    }
+  // Builds the subtree of another block's node whose lists and bounds fork() put in this
+  // builder's buffers (lists at `off`), exactly as that block's builder would have gone on.
+  void run_prepared(const std::size_t off[3], const std::size_t len[3], std::size_t count, const Aabb& box,
+                    int depth) {
+    if (s_.side.size() < tris_.size()) s_.side.resize(tris_.size());
     s_.restore.clear();
     out_.nodes.assign(1, KdNode{});
-    node(0, own, len, count, box, depth);
+    node(0, off, len, count, box, depth);
   }
 
  private:
@@ -2020,12 +2037,11 @@ class BlockBuilder {
       bounds[ref] = signless(clip_left[k]);
     }
     const std::size_t restore_end = s_.restore.size();
-    if (forks_ && left_count >= kForkAbove && right_count >= kForkAbove) {
-      const std::size_t* const child_off[2] = {left_off, right_off};
-      const std::size_t* const child_len[2] = {left_len, right_len};
-      const std::size_t child_count[2] = {left_count, right_count};
-      const Aabb child_box[2] = {left_box, right_box};
-      fork(first, child_off, child_len, child_count, child_box, depth + 1, restore, restore_end);
+    std::optional<ScratchPool::Lease> spare;
+    if (forks_ && left_count >= kForkAbove && right_count >= kForkAbove) spare.emplace(ScratchPool::instance(), true);
+    if (spare && spare->has()) {
+      fork(first, left_off, left_len, left_count, left_box, right_off, right_len, right_count, right_box, depth + 1,
+           restore, restore_end, **spare);
     } else {
       node(first, left_off, left_len, left_count, left_box, depth + 1);
       for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].right;
@@ -2036,46 +2052,57 @@ class BlockBuilder {
     s_.arena.release(mark);
   }
 
-  // Both children of a split, where each holds at least this many references, are built as
-  // blocks of their own, side by side (a small scene is one block, and a block was one
-  // thread's work): the same subtrees, nodes, references and SAH cost terms in the same places
-  // and order as one builder makes them.
+  // Both children of a split, where each holds at least this many references and a set of
+  // buffers is spare, are built side by side, the right one as a block of its own (a small
+  // scene is one block, and a block was one thread's work): the same subtrees, nodes,
+  // references and SAH cost terms in the same places and order as one builder makes them.
   static constexpr std::size_t kForkAbove = 512;
 
   // The children (left, right) at nodes `first` and `first + 1`, their lists in this builder's
   // arena, the straddlers' bounds in the left child in s_.bounds and in the right one in
-  // s_.restore[restore, restore_end).
-  void fork(std::size_t first, const std::size_t* const off[2], const std::size_t* const len[2],
-            const std::size_t count[2], const Aabb box[2], int depth, std::size_t restore, std::size_t restore_end) {
-    // Each child's buffers and subtree (Scratch::part) are leased until the splice.
-    const ScratchPool::Lease lease[2] = {ScratchPool::Lease(ScratchPool::instance()),
-                                         ScratchPool::Lease(ScratchPool::instance())};
-    (*lease[0]).part.reset(true);
-    (*lease[1]).part.reset(true);
-    const auto build = [&](int c) {
-      Scratch& child = *lease[c];
-      // The bounds of the child's own references only (each has one start or planar event
-      // per axis), so a fork costs its child's size, not its block's.
-      if (child.bounds.size() < tris_.size()) child.bounds.resize(tris_.size());
-      const Event* ev = s_.arena.at(off[c][0]);
-      for (std::size_t i = 0; i < len[c][0]; ++i) {
-        if (ev[i].type() != kEnd) child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
+  // s_.restore[restore, restore_end). The right child is built as a task of its own from
+  // copies of its lists and bounds in `child` (copied first: the left child's lists may move
+  // this builder's arena), the left one here meanwhile; the right one's subtree is then spliced
+  // in after the left one's.
+  void fork(std::size_t first, const std::size_t left_off[3], const std::size_t left_len[3], std::size_t left_count,
+            const Aabb& left_box, const std::size_t right_off[3], const std::size_t right_len[3],
+            std::size_t right_count, const Aabb& right_box, int depth, std::size_t restore, std::size_t restore_end,
+            Scratch& child) {
+    child.part.reset(true);
+    child.arena.release(0);
+    std::size_t off[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      off[axis] = child.arena.alloc(right_len[axis]);
+      if (right_len[axis] > 0) {
+        std::memcpy(child.arena.at(off[axis]), s_.arena.at(right_off[axis]), right_len[axis] * sizeof(Event));
       }
-      if (c == 1) {
-        for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
-      }
-      BlockBuilder(ctx_, child, tris_, child.part).resume(s_, off[c], len[c], count[c], box[c], depth);
-    };
-    // Not isolated: a thread waiting here takes whatever task is there, a nested fork's child
-    // too (isolating each fork cost Wuson 1.40x the time at 2 threads); ScratchPool caps what
-    // it keeps.
-    tbb::parallel_invoke([&] { build(0); }, [&] { build(1); });
-    // A build whose other task threw is cancelled, and the children may not have run: that
-    // build ends in the other task's exception, not in a splice of nothing.
-    if ((*lease[0]).part.nodes.empty() || (*lease[1]).part.nodes.empty()) throw Error("kd-tree build cancelled");
+    }
+    // The bounds of the child's own references only (each has one start or planar event per
+    // axis), so a fork costs its child's size, not its block's.
+    if (child.bounds.size() < tris_.size()) child.bounds.resize(tris_.size());
+    const Event* ev = child.arena.at(off[0]);
+    for (std::size_t i = 0; i < right_len[0]; ++i) {
+      if (ev[i].type() != kEnd) child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
+    }
+    for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
+
+    tbb::task_group right;
+    right.run([&] {
+      BlockBuilder(ctx_, child, tris_, child.part).run_prepared(off, right_len, right_count, right_box, depth);
+    });
+    try {
+      node(first, left_off, left_len, left_count, left_box, depth);
+    } catch (...) {
+      right.cancel();
+      right.wait();
+      throw;
+    }
+    right.wait();
+    // A build whose other task threw is cancelled, and the child may not have run: that build
+    // ends in the other task's exception, not in a splice of nothing.
+    if (child.part.nodes.empty()) throw Error("kd-tree build cancelled");
+    splice(first + 1, child.part);
     ++out_.forks;
-    splice(first, (*lease[0]).part);
-    splice(first + 1, (*lease[1]).part);
   }
 
   // Appends a child's block to this one, its root at node `slot`, the rest after this block's
