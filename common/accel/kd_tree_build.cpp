@@ -99,9 +99,10 @@ struct BuildContext {
   // Blocks of more references than this build large children as blocks of their own, side by
   // side (BlockBuilder::fork): a quarter of the triangles, so a scene of a few blocks (one, if
   // it is small) does not leave threads idle while one builds its last block. Smaller blocks
-  // have other blocks beside them; there the copies the fork makes measured slower (spd-gears,
-  // radiance-office 1.1x the time at 2 threads). With one thread: never (they cost 1.05-1.5x
-  // the time). The tree and its statistics are the same either way.
+  // have other blocks beside them; there a first form of the fork (both children on fresh
+  // copies of the whole block's bounds) measured slower (spd-gears, radiance-office 1.1x the
+  // time at 2 threads), and with one thread it cost 1.05-1.5x; the kept form was not measured
+  // against these limits. The tree and its statistics are the same either way.
   std::size_t fork_above = 0;
 };
 
@@ -660,13 +661,13 @@ class ScratchPool {
     return take_locked();
   }
   // A set for a fork's child: a kept one, or a new one while fewer sets exist than threads may
-  // build (a fork is worth it where another thread is idle, and then its set is spare); none
-  // otherwise. So a first build grows at most one set per thread, as blocks alone do.
+  // build (build_threads(): a fork is worth it where another thread is idle, and then its set
+  // is spare); none otherwise. So a first build grows at most one set per thread, as blocks
+  // alone do.
   std::unique_ptr<Scratch> spare() {
+    const std::size_t threads = build_threads();
     const std::lock_guard lock(mutex_);
-    if (free_.empty() && live_ >= static_cast<std::size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1))) {
-      return nullptr;
-    }
+    if (free_.empty() && live_ >= threads) return nullptr;
     return take_locked();
   }
   std::unique_ptr<Scratch> take_locked() {
@@ -2754,7 +2755,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
-  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, static_cast<std::size_t>(std::max(options.exact_below, 1)), sah_scale_for(root),
+  const auto exact_below = static_cast<std::size_t>(std::max(options.exact_below, 1));
+  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below, sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
                    std::max(options.leaf_box_saving, 0.0f), build_threads() > 1 ? count / 4 : SIZE_MAX};
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);

@@ -629,10 +629,8 @@ int run(int argc, char** argv) {
           std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d: packets %.2f M "
                       "rays/s (%.3fx the first tree's, paired), single rays %.2f (%.3fx)%s\n",
                       mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
-                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below,
-                      mrays, packet_ratio, mrays_single,
-                      single_ratio,
-                      differ != 0 ? ", ANSWERS DIFFER" : "");
+                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below, mrays, packet_ratio,
+                      mrays_single, single_ratio, differ != 0 ? ", ANSWERS DIFFER" : "");
         }
       }
 

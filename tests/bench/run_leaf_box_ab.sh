@@ -4,8 +4,8 @@
 # blocks (KdBuildOptions::exact_below), at two values on every view of the shared scene pack, in
 # one process per view: rtc-bench builds a tree with each value and times both trees' packets
 # and single rays rep by rep (--ab-kd-leaf-box-saving / --ab-kd-empty-cut /
-# --ab-kd-exact-below), so a slow spell of the
-# machine falls on both alike, and checks that both trees give the same answers. Writes
+# --ab-kd-exact-below), so a slow spell of the machine falls on both alike, and checks that
+# both trees give the same answers. Writes
 # tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
 # (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
 # first's, paired rep by rep).

@@ -2,8 +2,7 @@
 """Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
 --ab-kd-leaf-box-saving, --ab-kd-empty-cut or --ab-kd-exact-below, whichever the two trees
-differ in), with the
-medians over the views.
+differ in), with the medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
 import statistics
