@@ -101,8 +101,10 @@ struct BuildContext {
   // it is small) does not leave threads idle while one builds its last block. Smaller blocks
   // have other blocks beside them; there a first form of the fork (both children on fresh
   // copies of the whole block's bounds) measured slower (spd-gears, radiance-office 1.1x the
-  // time at 2 threads), and with one thread it cost 1.05-1.5x; the kept form was not measured
-  // against these limits. The tree and its statistics are the same either way.
+  // time at 2 threads), and with one thread it cost 1.05-1.5x. The kept form with no size
+  // limit at 2 threads: radiance-office 0.99x, spd-gears 1.04x, 2CylinderEngine 1.07x,
+  // radiance-cabin 1.03x (build_experiments.md, session 31). The tree and its statistics are
+  // the same either way.
   std::size_t fork_above = 0;
 };
 
@@ -398,13 +400,13 @@ struct Block {
     }
   }
 
-  // Empty, keeping the arrays' room.
-  void reset(bool keep) {
+  // Empty, keeping the arrays' room, for a forked child's subtree (its SAH terms kept).
+  void reset_for_fork() {
     nodes.clear();
     refs.clear();
     boxes.clear();
     terms.clear();
-    keep_terms = keep;
+    keep_terms = true;
     leaves = empty_leaves = forks = 0;
     max_depth = 0;
     cost_area = 0;
@@ -615,9 +617,9 @@ struct Scratch {
 // buffers in every build cost a small scene's build most of its time in page faults (bunny,
 // 3,674 triangles: 746 faults, about 2 ms of a 5 ms build), and a moving mesh's tree is
 // rebuilt frame after frame. A block takes one for its whole run, and a fork one for its
-// right child where one is spare (BlockBuilder::fork), so there are never more sets than
-// blocks built at once plus one per thread; a buffer set above kKeep bytes is freed instead of
-// kept, and so is one a failed block leaves behind.
+// right child where one is spare (BlockBuilder::fork: a fork makes a new set only while there
+// are at most as many as threads); a buffer set above kKeep bytes is freed instead of kept,
+// and so is one a failed block leaves behind.
 class ScratchPool {
  public:
   static constexpr std::size_t kKeep = std::size_t{64} << 20;
@@ -660,14 +662,16 @@ class ScratchPool {
     const std::lock_guard lock(mutex_);
     return take_locked();
   }
-  // A set for a fork's child: a kept one, or a new one while fewer sets exist than threads may
-  // build (build_threads(): a fork is worth it where another thread is idle, and then its set
-  // is spare); none otherwise. So a first build grows at most one set per thread, as blocks
-  // alone do.
+  // A set for a fork's child: a kept one, or a new one while there are at most as many sets as
+  // threads may build (build_threads()); none otherwise. A fork is worth it where another
+  // thread is idle or soon will be: with one set per thread busy, one more lets a block fork
+  // a child that the thread finishing first takes up (Wuson at 2 threads: 3 forks instead of
+  // 1, 0.87-0.89x the build time; bunny, spd-teapot, spd-mount within noise). So a first build
+  // grows at most one set beyond one per thread.
   std::unique_ptr<Scratch> spare() {
     const std::size_t threads = build_threads();
     const std::lock_guard lock(mutex_);
-    if (free_.empty() && live_ >= threads) return nullptr;
+    if (free_.empty() && live_ > threads) return nullptr;
     return take_locked();
   }
   std::unique_ptr<Scratch> take_locked() {
@@ -2069,7 +2073,7 @@ class BlockBuilder {
             const Aabb& left_box, const std::size_t right_off[3], const std::size_t right_len[3],
             std::size_t right_count, const Aabb& right_box, int depth, std::size_t restore, std::size_t restore_end,
             Scratch& child) {
-    child.part.reset(true);
+    child.part.reset_for_fork();
     child.arena.release(0);
     std::size_t off[3];
     for (int axis = 0; axis < 3; ++axis) {

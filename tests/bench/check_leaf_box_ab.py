@@ -6,9 +6,11 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - the first tree has no boxes, the second has some, and the two gave the same answers;
   - both trees' throughputs and the paired ratios are positive and finite;
   - summarize_leaf_box_ab.py tabulates the lines.
-Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once): the
-two trees' options are recorded, the trees differ, they give the same answers, the figures are
-finite and the summary tabulates them.
+Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once) and
+for --ab-kd-exact-below (the exact sweep below 4096 references against below 512, so more
+levels binned): the two trees' options are recorded, the trees differ, they give the same
+answers, the figures (for the threshold both trees' SAH costs too) are finite and the summary
+tabulates them.
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
@@ -70,9 +72,21 @@ def empty_cuts(r, ab, mode):
     check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
 
 
+def exact_below(r, ab, mode):
+    check(r.get("kd_exact_below") == 4096 and ab.get("kd_exact_below") == 512,
+          f"{mode}: exact sweep below {r.get('kd_exact_below')} and {ab.get('kd_exact_below')}, expected 4096 and 512")
+    check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
+    # The built-in scene (38,072 triangles) has nodes of 512 to 4096 references, which the two
+    # thresholds split differently (40,559 nodes against 41,939).
+    check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
+    check(finite_positive(r.get("kd_sah_cost")) and finite_positive(ab.get("kd_sah_cost")),
+          f"{mode}: SAH costs {r.get('kd_sah_cost')} and {ab.get('kd_sah_cost')}")
+
+
 def main(bench):
     run_ab(bench, 4, ["--kd-leaf-box-saving", "0", "--ab-kd-leaf-box-saving", "0.000001"], "boxes (1e-06)", leaf_boxes)
     run_ab(bench, 3, ["--kd-empty-cut", "2", "--ab-kd-empty-cut", "0"], "nodes (2 → 0)", empty_cuts)
+    run_ab(bench, 3, ["--kd-exact-below", "4096", "--ab-kd-exact-below", "512"], "nodes (4096 → 512)", exact_below)
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
 
