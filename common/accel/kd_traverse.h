@@ -472,11 +472,11 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
   }
 }
 
-/// Asks for the cache lines of a leaf's slots, its LeafBox's (`boxed`) and its `count` records,
-/// after the first, which the walk loads at once. A packet tests a leaf's records one by one,
-/// and each test ends in branches on its lanes (`none(active)`) whose mispredictions throw away
-/// the loads the core had begun for the records after it, so without this a leaf's lines came
-/// in one after another. 16-wide primary rays 1.05-1.12x on the large scenes where rtc trailed
+/// Asks at once for every cache line that a leaf's slots span (its LeafBox where `boxed`, then
+/// its `count` records) but the first, which the walk loads right away. A packet tests a leaf's
+/// records one by one, and each test ends in branches on its lanes (`none(active)`) whose
+/// mispredictions throw away the loads the core had begun for the records after it, so without
+/// this a leaf's lines came in one after another. 16-wide primary rays 1.05-1.12x on the large scenes where rtc trailed
 /// Embree (spd-balls 1.12, spd-mount-s10 1.11, spd-balls-s3 1.08, spd-tree 1.05), shadow rays
 /// 0.98-1.06x (median 1.02), the same hits (tests/bench/results/leaf_prefetch.md). Single rays
 /// load a leaf's records together anyway (intersect_leaf_single).
