@@ -476,10 +476,11 @@ inline bool intersect_leaf_by_lanes(const TriRecord* leaf, std::uint32_t count, 
 /// its `count` records) but the first, which the walk loads right away. A packet tests a leaf's
 /// records one by one, and each test ends in branches on its lanes (`none(active)`) whose
 /// mispredictions throw away the loads the core had begun for the records after it, so without
-/// this a leaf's lines came in one after another. 16-wide primary rays 1.05-1.12x on the large scenes where rtc trailed
-/// Embree (spd-balls 1.12, spd-mount-s10 1.11, spd-balls-s3 1.08, spd-tree 1.05), shadow rays
-/// 0.98-1.06x (median 1.02), the same hits (tests/bench/results/leaf_prefetch.md). Single rays
-/// load a leaf's records together anyway (intersect_leaf_single).
+/// this a leaf's lines came in one after another. 16-wide primary rays 1.05-1.12x on the large
+/// scenes where rtc trailed Embree (spd-balls 1.12, spd-mount-s10 1.11, spd-balls-s3 1.08,
+/// spd-tree 1.05), shadow rays 0.98-1.06x (median 1.02), the same hits
+/// (tests/bench/results/leaf_prefetch.md). Single rays load a leaf's records together anyway
+/// (intersect_leaf_single).
 inline void prefetch_leaf(const TriRecord* leaf, std::uint32_t count, bool boxed) {
   constexpr std::uintptr_t kLine = 64;
   const std::uintptr_t first = reinterpret_cast<std::uintptr_t>(leaf - (boxed ? 1 : 0)) & ~(kLine - 1);
