@@ -2617,17 +2617,116 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
   add_stats(*t.child[1], right_box, depth + 1, options, scale, stats, cost_area);
 }
 
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+
+// alloc_pages' alignment and size for a request: huge-page aligned from 2 MiB up, and a multiple
+// of the alignment (aligned_alloc wants one).
+struct PageBlock {
+  std::size_t align = 0, bytes = 0;
+  PageBlock(std::size_t request, std::size_t min_align)
+      : align(request >= kHugePage ? std::max(min_align, kHugePage) : min_align),
+        bytes((request + align - 1) / align * align) {}
+  [[nodiscard]] bool huge() const { return align >= kHugePage; }
+};
+
+// The huge blocks free_pages keeps (its comment), oldest first, and those lent out with their
+// sizes (a kept block lent for a request may be up to twice as large). Never destroyed, as
+// ScratchPool: a tree freed by another static object's destructor still finds it.
+class PageCache {
+ public:
+  static PageCache& instance() {
+    static PageCache* const cache = new PageCache;
+    return *cache;
+  }
+  PageCache() { kept_.reserve(kPageCacheBlocks + 1); }
+  // A block of at least `bytes`: a kept one of at most twice that, the smallest such, or a new
+  // one.
+  void* lend(std::size_t bytes, std::size_t align) {
+    const std::lock_guard lock(mutex_);
+    lent_.reserve(lent_.size() + 1);  // so that the push_back below cannot throw
+    std::size_t best = kept_.size();
+    for (std::size_t i = 0; i < kept_.size(); ++i) {
+      const std::size_t b = kept_[i].bytes;
+      if (b >= bytes && b / 2 <= bytes && (best == kept_.size() || b < kept_[best].bytes)) best = i;
+    }
+    Block block;
+    if (best < kept_.size()) {
+      block = kept_[best];
+      total_ -= block.bytes;
+      kept_.erase(kept_.begin() + static_cast<std::ptrdiff_t>(best));
+      ++reused_;
+    } else {
+      block = {std::aligned_alloc(align, bytes), bytes};
+      if (block.p == nullptr) throw std::bad_alloc();
+      ::madvise(block.p, bytes, MADV_HUGEPAGE);
+    }
+    lent_.push_back(block);
+    return block.p;
+  }
+  // Takes back a block of lend(), keeping it and freeing the oldest kept blocks beyond the
+  // limits.
+  void give(void* p) noexcept {
+    const std::lock_guard lock(mutex_);
+    const auto it = std::find_if(lent_.begin(), lent_.end(), [p](const Block& b) { return b.p == p; });
+    if (it == lent_.end()) {  // not lent here (never happens)
+      std::free(p);
+      return;
+    }
+    kept_.push_back(*it);  // never reallocates (the constructor's reserve)
+    total_ += it->bytes;
+    lent_.erase(it);
+    std::size_t n = 0;
+    while (n < kept_.size() && (kept_.size() - n > kPageCacheBlocks || total_ > kPageCacheBytes)) {
+      total_ -= kept_[n].bytes;
+      std::free(kept_[n].p);
+      ++n;
+    }
+    kept_.erase(kept_.begin(), kept_.begin() + static_cast<std::ptrdiff_t>(n));
+  }
+  PageCacheStats stats() {
+    const std::lock_guard lock(mutex_);
+    return {kept_.size(), total_, reused_};
+  }
+  void release() noexcept {
+    const std::lock_guard lock(mutex_);
+    for (const Block& b : kept_) std::free(b.p);
+    kept_.clear();
+    total_ = 0;
+  }
+
+ private:
+  struct Block {
+    void* p = nullptr;
+    std::size_t bytes = 0;
+  };
+  std::mutex mutex_;
+  std::vector<Block> kept_, lent_;
+  std::size_t total_ = 0;
+  std::uint64_t reused_ = 0;
+};
+
 }  // namespace
 
 void* alloc_pages(std::size_t bytes, std::size_t align) {
-  constexpr std::size_t kHugePage = std::size_t{2} << 20;
-  if (bytes >= kHugePage) align = std::max(align, kHugePage);
-  const std::size_t rounded = (bytes + align - 1) / align * align;  // aligned_alloc wants a multiple
-  void* p = std::aligned_alloc(align, rounded);
+  const PageBlock block(bytes, align);
+  if (block.huge()) return PageCache::instance().lend(block.bytes, block.align);
+  void* p = std::aligned_alloc(block.align, block.bytes);
   if (p == nullptr) throw std::bad_alloc();
-  if (align >= kHugePage) ::madvise(p, rounded, MADV_HUGEPAGE);
   return p;
 }
+
+void free_pages(void* p, std::size_t bytes, std::size_t align) noexcept {
+  if (p == nullptr) return;
+  if (PageBlock(bytes, align).huge()) {
+    PageCache::instance().give(p);
+  } else {
+    std::free(p);
+  }
+}
+
+PageCacheStats page_cache_stats() { return PageCache::instance().stats(); }
+
+void release_page_cache() noexcept { PageCache::instance().release(); }
 
 TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   // Computed in double, rounded once: the record is as exact as float storage allows.

@@ -321,7 +321,7 @@ TEST(KdTree, LargeArraysAreAlignedToHugePages) {
     EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % align, 0u) << bytes << " bytes";
     std::memset(p, 0xAB, bytes);  // every byte asked for is there
     EXPECT_EQ(static_cast<unsigned char*>(p)[bytes - 1], 0xABu);
-    std::free(p);
+    free_pages(p, bytes, 16);
   }
   RawArray<TriRecord> records(100000);  // 4.8 MB
   EXPECT_EQ(reinterpret_cast<std::uintptr_t>(records.data()) % (std::size_t{2} << 20), 0u);
@@ -620,6 +620,78 @@ TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
     const KdTree again = KdTree::build(a.positions, a.triangles, o);
     expect_same_tree(first, again);
   }
+}
+
+// A freed tree's arrays of 2 MiB or more are kept and lent again (free_pages): a tree built in
+// the memory another, different tree left behind is, byte for byte, the tree built in fresh
+// memory (zeroed by the kernel), so the build writes every byte it keeps.
+TEST(KdTree, ArraysKeptFromFreedTreesChangeNoTree) {
+  const Soup a = random_soup(31, 70000, 0.02f);
+  const Soup b = random_soup(32, 60000, 0.02f);
+  for (const bool clip : {true, false}) {
+    SCOPED_TRACE(testing::Message() << "clip " << clip);
+    KdBuildOptions o;
+    o.clip = clip;
+    release_page_cache();
+    const KdTree fresh = KdTree::build(b.positions, b.triangles, o);
+    ASSERT_GE(fresh.leaf_records().size_bytes(), std::size_t{2} << 20);
+    {
+      const KdTree other = KdTree::build(a.positions, a.triangles, o);
+      ASSERT_GE(other.leaf_records().size_bytes(), fresh.leaf_records().size_bytes());
+    }
+    const PageCacheStats kept = page_cache_stats();
+    EXPECT_GE(kept.blocks, 2u);  // at least its records and its references
+    const KdTree again = KdTree::build(b.positions, b.triangles, o);
+    EXPECT_GE(page_cache_stats().reused, kept.reused + 2);
+    expect_same_tree(fresh, again);
+  }
+  release_page_cache();
+  EXPECT_EQ(page_cache_stats().blocks, 0u);
+  EXPECT_EQ(page_cache_stats().bytes, 0u);
+}
+
+// free_pages keeps blocks of 2 MiB and more, up to kPageCacheBlocks and kPageCacheBytes (the
+// oldest freed first beyond them), and lends one again for a request of at least half its size.
+TEST(KdTree, PageCacheKeepsWithinItsLimits) {
+  constexpr std::size_t kMiB = std::size_t{1} << 20;
+  release_page_cache();
+  void* small = alloc_pages(kMiB, 16);
+  free_pages(small, kMiB, 16);
+  EXPECT_EQ(page_cache_stats().blocks, 0u);  // malloc's
+  std::vector<void*> blocks;
+  for (std::size_t i = 0; i < kPageCacheBlocks + 2; ++i) blocks.push_back(alloc_pages(2 * kMiB, 16));
+  for (void* p : blocks) free_pages(p, 2 * kMiB, 16);
+  EXPECT_EQ(page_cache_stats().blocks, kPageCacheBlocks);
+  EXPECT_EQ(page_cache_stats().bytes, kPageCacheBlocks * 2 * kMiB);
+  release_page_cache();
+
+  void* big = alloc_pages(8 * kMiB, 16);
+  free_pages(big, 8 * kMiB, 16);
+  const std::uint64_t reused = page_cache_stats().reused;
+  void* quarter = alloc_pages(2 * kMiB, 16);  // 8 MiB is more than twice this: a new block
+  EXPECT_NE(quarter, big);
+  EXPECT_EQ(page_cache_stats().reused, reused);
+  void* most = alloc_pages(5 * kMiB, 16);  // 6 MiB rounded: the 8 MiB block
+  EXPECT_EQ(most, big);
+  EXPECT_EQ(page_cache_stats().reused, reused + 1);
+  free_pages(quarter, 2 * kMiB, 16);
+  free_pages(most, 5 * kMiB, 16);  // comes back as the 8 MiB it is
+  EXPECT_EQ(page_cache_stats().bytes, 10 * kMiB);
+  release_page_cache();
+
+  // Two blocks of 600 MiB (address space only: never touched) are more than kPageCacheBytes
+  // together: the older one is freed.
+  static_assert(kPageCacheBytes < 1200 * kMiB && kPageCacheBytes >= 600 * kMiB);
+  void* first = alloc_pages(600 * kMiB, 16);
+  void* second = alloc_pages(600 * kMiB, 16);
+  free_pages(first, 600 * kMiB, 16);
+  free_pages(second, 600 * kMiB, 16);
+  EXPECT_EQ(page_cache_stats().blocks, 1u);
+  EXPECT_EQ(page_cache_stats().bytes, 600 * kMiB);
+  void* again = alloc_pages(600 * kMiB, 16);
+  EXPECT_EQ(again, second);
+  free_pages(again, 600 * kMiB, 16);
+  release_page_cache();
 }
 
 // A small scene is one block of the exact stage; with more than one thread its large nodes'
