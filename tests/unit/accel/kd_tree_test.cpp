@@ -623,8 +623,8 @@ TEST(KdTree, BuffersKeptFromEarlierBuildsChangeNoTree) {
 }
 
 // A freed tree's arrays of 2 MiB or more are kept and lent again (free_pages): a tree built in
-// the memory another, different tree left behind is, byte for byte, the tree built in fresh
-// memory (zeroed by the kernel), so the build writes every byte it keeps.
+// the memory another, different tree left behind is, byte for byte, the tree built in memory
+// the cache did not supply, so the build writes every byte it keeps.
 TEST(KdTree, ArraysKeptFromFreedTreesChangeNoTree) {
   const Soup a = random_soup(31, 70000, 0.02f);
   const Soup b = random_soup(32, 60000, 0.02f);
