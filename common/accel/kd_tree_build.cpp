@@ -1776,6 +1776,18 @@ class MaskBuilder {
   Block& out_;
 };
 
+// A forking block (BlockBuilder::forks_: one that is most of a small scene) of at least this
+// many references clips its triangles and makes its three event lists side by side, and its
+// nodes of at least this many sweep their three axes side by side: until its first fork the
+// other threads have nothing to do.
+constexpr std::size_t kSideBySideSetUp = 1024;
+
+// A sort buffer per thread, for the event lists a forking block makes side by side.
+std::vector<Event>& tl_sort_buffer() {
+  thread_local std::vector<Event> buffer;
+  return buffer;
+}
+
 // Sweeps one subtree exactly: three event lists sorted once at its root (each triangle clipped
 // to the block's box), then each node splits its sorted lists into its children's (Wald &
 // Havran 2006, section 4.3): one-sided references keep their events in order, straddling ones
@@ -1792,17 +1804,28 @@ class BlockBuilder {
     std::size_t off[3], len[3];
     std::vector<Aabb>& bounds = s_.bounds;
     bounds.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Aabb& t = ctx_.tri_box[tris_[i]];
-      bounds[i] = signless(ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box));
-    }
-    for (int axis = 0; axis < 3; ++axis) {
-      off[axis] = s_.arena.alloc(2 * n);
+    const auto clip_range = [&](std::size_t from, std::size_t to) {
+      for (std::size_t i = from; i < to; ++i) {
+        const Aabb& t = ctx_.tri_box[tris_[i]];
+        bounds[i] = signless(ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box));
+      }
+    };
+    for (int axis = 0; axis < 3; ++axis) off[axis] = s_.arena.alloc(2 * n);
+    const auto make_list = [&](int axis, std::vector<Event>& sort_buffer) {
       Event* ev = s_.arena.at(off[axis]);
       std::size_t m = 0;
       for (std::size_t i = 0; i < n; ++i) m += add_events(ev + m, bounds[i], axis, static_cast<std::uint32_t>(i));
-      sort_events(ev, m, s_.sort_buffer, ctx_);
+      sort_events(ev, m, sort_buffer, ctx_);
       len[axis] = m;
+    };
+    if (forks_ && n >= kSideBySideSetUp) {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 512),
+                        [&](const tbb::blocked_range<std::size_t>& r) { clip_range(r.begin(), r.end()); });
+      tbb::parallel_invoke([&] { make_list(0, s_.sort_buffer); }, [&] { make_list(1, tl_sort_buffer()); },
+                           [&] { make_list(2, tl_sort_buffer()); });
+    } else {
+      clip_range(0, n);
+      for (int axis = 0; axis < 3; ++axis) make_list(axis, s_.sort_buffer);
     }
     s_.restore.clear();
     out_.nodes.assign(1, KdNode{});
@@ -1852,11 +1875,17 @@ class BlockBuilder {
       const float inv_area = 1.0f / area;
       split = wide_empty_cut(off, len, count, box, inv_area);
       if (split.axis < 0) {
+        SplitChoice c[3];
+        const auto sweep = [&](int axis) {
+          c[axis] = best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
+        };
+        if (forks_ && count >= kSideBySideSetUp) {
+          tbb::parallel_invoke([&] { sweep(0); }, [&] { sweep(1); }, [&] { sweep(2); });
+        } else {
+          for (int axis = 0; axis < 3; ++axis) sweep(axis);
+        }
         for (int axis = 0; axis < 3; ++axis) {
-          // The earliest axis wins a tie.
-          const SplitChoice c =
-              best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
-          if (c.cost < split.cost) split = c;
+          if (c[axis].cost < split.cost) split = c[axis];  // the earliest axis wins a tie
         }
       }
     }
@@ -2810,7 +2839,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   // leaf order (leaf_records_), made once the leaves are known.
   RawArray<TriRecord> records(triangles.size());
   RawArray<Aabb> tri_box(triangles.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 4096), [&](const auto& range) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 1024), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const glm::uvec3 t = triangles[i];
       RTC_CHECK(t.x < positions.size() && t.y < positions.size() && t.z < positions.size(),

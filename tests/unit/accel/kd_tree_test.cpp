@@ -695,8 +695,10 @@ TEST(KdTree, PageCacheKeepsWithinItsLimits) {
 }
 
 // A small scene is one block of the exact stage; with more than one thread its large nodes'
-// children are built as tasks of their own (BlockBuilder::fork) and spliced back in. The tree, its
-// records and every statistic (the SAH cost's float sum too) are those one thread makes.
+// children are built as tasks of their own (BlockBuilder::fork) and spliced back in, and the
+// block's three event lists and its large nodes' three sweeps are made side by side
+// (kSideBySideSetUp: the two one-block soups here are above it). The tree, its records and every
+// statistic (the SAH cost's float sum too) are those one thread makes.
 TEST(KdTree, BlocksForkedAcrossThreadsBuildTheOneThreadTree) {
   // One block each, except the last: a few blocks (a fork there depends on their sizes).
   const Soup soups[] = {random_soup(21, 3500, 0.05f), planar_piles(22, 3000), random_soup(23, 12000, 0.01f)};
