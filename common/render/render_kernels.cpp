@@ -11,6 +11,7 @@
 // primary rays all miss the geometry's bounds (FrameState::cull) get the background without
 // entering the kd-tree. Neither changes a bit of any pixel.
 #include <algorithm>
+#include <cstdlib>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -243,6 +244,57 @@ void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) 
   marks.shadow(list.n, list.org, list.dir, list.t_end);
 }
 
+/// Mirror bounces as render_tile_bounces traces them. A packet whose bounces fill at least half
+/// its lanes traces them at once, as one packet (they left neighbouring pixels' hits, so they
+/// mostly stay together). Fewer bounces, which left the packet's hits in scattered directions,
+/// wait in a queue for the bounces of the tile's other packets, and are traced later in full
+/// packets of similar rays (sort_bounces). Either way a lane's colour at each depth ("term":
+/// 0 + weight * local, as trace_radiance leaves it) is kept in a chain per primary sample, and
+/// the sample's colour is summed from the deepest term back, term + colour below, as the
+/// recursion without a queue adds a bounce's colour to its parent's: the same operations in
+/// the same order, so the same bits.
+struct Bounce {
+  glm::vec3 org{0.0f}, dir{0.0f}, weight{0.0f};
+  std::uint32_t parent = 0;  // the term of the hit it leaves
+  int depth = 0;             // its own depth (its parent's + 1)
+};
+
+struct Bounces {
+  struct Term {
+    glm::vec3 color{0.0f};
+    std::int32_t child = -1;  // the term of the bounce below, if any
+  };
+  std::vector<Term> terms;
+  std::vector<Bounce> queue;          // waiting to be traced
+  std::vector<Bounce> batch;          // the queue taken in sorted order
+  std::vector<std::uint64_t> keys;    // sort_bounces' scratch
+  std::vector<std::uint32_t> path;    // color()'s scratch
+  static constexpr std::uint32_t kNone = ~std::uint32_t{0};
+
+  std::uint32_t add() {
+    terms.push_back(Term{});
+    return static_cast<std::uint32_t>(terms.size() - 1);
+  }
+  /// A new term for the bounce leaving term `parent`.
+  std::uint32_t add_child(std::uint32_t parent) {
+    const std::uint32_t t = add();
+    terms[parent].child = static_cast<std::int32_t>(t);
+    return t;
+  }
+  /// The sample's colour from its primary term: the deepest term, then each term above plus the
+  /// colour below it.
+  [[nodiscard]] glm::vec3 color(std::uint32_t root) {
+    if (terms[root].child < 0) return terms[root].color;
+    path.clear();
+    for (std::int32_t t = static_cast<std::int32_t>(root); t >= 0; t = terms[static_cast<std::size_t>(t)].child) {
+      path.push_back(static_cast<std::uint32_t>(t));
+    }
+    glm::vec3 c = terms[path.back()].color;
+    for (std::size_t k = path.size() - 1; k-- > 0;) c = terms[path[k]].color + c;
+    return c;
+  }
+};
+
 /// Shadow-ray walk orders of a tile: one chooser per light for the primary hits' shadow rays and
 /// one for the mirror bounces' (points of another kind, often another preference), each
 /// learning from and adding to the renderer's shared tally for it (TileKernelOptions).
@@ -266,9 +318,16 @@ struct ShadowOrders {
 // general one (F = kAll) does for a frame with those features: what F leaves out is only work
 // whose result the frame never uses (a light loop over no lights, a mirror test no material
 // passes, a surface nothing reads), so the pixels are the same bits.
+//
+// `bounces` (optional, with `terms`: each lane's term there, or Bounces::kNone): mirror bounces
+// are traced at once or queued there (Bounces). Returns the lanes with a bounce queued, here or
+// further down: each has a term now (made where it had none), and its colour is its term's so
+// far (what the queued bounce brings is linked to the term, not added), which the caller stores
+// in the term. Without `bounces`, 0.
 template <int N, unsigned F>
-void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
-                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders) {
+unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
+                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders,
+                    std::uint32_t* terms = nullptr, Bounces* bounces = nullptr) {
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
   RayHit hit[N];
   closest_hits<N>(fs, rays, active, hit);
@@ -297,7 +356,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
       }
       lanes.color[i] = lanes.color[i] + lanes.weight[i] * local;
     }
-    return;
+    return 0;
   } else {
     SurfaceSample surf[N];
     glm::vec3 local[N];
@@ -324,7 +383,7 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         }
       }
     }
-    if (hit_lanes == 0) return;
+    if (hit_lanes == 0) return 0;
 
     if constexpr ((F & kShadows) != 0) {
       if (marks != nullptr && !fs.lights.empty()) marks->shaded();
@@ -422,13 +481,54 @@ void trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned acti
         next.color[i] = glm::vec3(0.0f);
         refl.set(i, s.point, 0.0f, r, std::numeric_limits<float>::infinity());
       }
-      if (bounce == 0) return;
+      if (bounce == 0) return 0;
+      if (bounces != nullptr) {
+        unsigned signs[3];
+        for (int a = 0; a < 3; ++a) signs[a] = bits(sign_bit(vfloat<N>::load(refl.dir[a]))) & bounce;
+        int octants = 0;
+        for (unsigned left = bounce; left != 0;) {
+          const int f = __builtin_ctz(left);
+          const unsigned mx = ((signs[0] >> f) & 1u) ? signs[0] : ~signs[0];
+          const unsigned my = ((signs[1] >> f) & 1u) ? signs[1] : ~signs[1];
+          const unsigned mz = ((signs[2] >> f) & 1u) ? signs[2] : ~signs[2];
+          left &= ~(mx & my & mz);
+          ++octants;
+        }
+        if (octants > 2 || 2 * std::popcount(bounce) < N) {
+          for (int i = 0; i < N; ++i) {
+            if (!((bounce >> i) & 1u)) continue;
+            if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
+            const RayQuery q = refl.query(i);
+            bounces->queue.push_back(Bounce{q.org, q.dir, next.weight[i], terms[i], depth + 1});
+          }
+          counts.reflection_regrouped += static_cast<std::uint64_t>(std::popcount(bounce));
+          return bounce;
+        }
+        // Traced at once. A lane whose bounces all came back adds their colour as the recursion
+        // does; one with a bounce queued further down links its child's term instead.
+        std::uint32_t child[N];
+        std::fill(child, child + N, Bounces::kNone);
+        const unsigned pending =
+            trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders, child, bounces);
+        for (int i = 0; i < N; ++i) {
+          if (!((bounce >> i) & 1u)) continue;
+          if ((pending >> i) & 1u) {
+            if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
+            bounces->terms[terms[i]].child = static_cast<std::int32_t>(child[i]);
+            bounces->terms[child[i]].color = next.color[i];
+          } else {
+            lanes.color[i] = lanes.color[i] + next.color[i];
+          }
+        }
+        return pending;
+      }
       trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders);
       for (int i = 0; i < N; ++i) {
         if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
       }
     }
   }
+  return 0;
 }
 
 /// Fills a tile none of whose primary rays can hit anything with what a miss gives each pixel
@@ -465,6 +565,210 @@ void fill_missed_tile(const FrameState& fs, int w, int h, int spp, Image& out, T
   counts.primary_skipped += rays;
 }
 
+/// A 10-bit cell index of x in [lo, lo + 1024 / scale); NaN and values outside clamp to the ends.
+inline std::uint64_t bounce_cell(float x, float lo, float scale) {
+  const float f = (x - lo) * scale;
+  if (!(f > 0.0f)) return 0;
+  return f < 1023.0f ? static_cast<std::uint64_t>(f) : 1023u;
+}
+
+/// x's low 10 bits spread to every third bit (a Morton code's part for one axis).
+inline std::uint64_t spread_bits3(std::uint64_t x) {
+  x &= 0x3FF;
+  x = (x | (x << 16)) & 0x030000FFu;
+  x = (x | (x << 8)) & 0x0300F00Fu;
+  x = (x | (x << 4)) & 0x030C30C3u;
+  x = (x | (x << 2)) & 0x09249249u;
+  return x;
+}
+
+/// Moves the queue into `batch` sorted so that a packet gets rays of one depth and direction
+/// octant whose origins lie close together: by depth, octant, the Morton code of the origin in
+/// the queue's box (10 bits per axis), then queue position. Sorted as 64-bit keys (depth 7 bits,
+/// octant 3, Morton code 30, position 24) and gathered; a queue of 2^24 bounces or more (one per
+/// pixel of a tile of 4096 x 4096 pixels or more) is sorted by the same order as (key, position)
+/// pairs. Depths are at most 64 (RenderSettings::max_depth, clamped by the loaders).
+void sort_bounces(Bounces& b) {
+  std::vector<Bounce>& queue = b.queue;
+  glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+  for (const Bounce& x : queue) {
+    lo = glm::min(lo, x.org);
+    hi = glm::max(hi, x.org);
+  }
+  glm::vec3 scale(0.0f);
+  for (int a = 0; a < 3; ++a) {
+    const float extent = hi[a] - lo[a];
+    if (extent > 0.0f && std::isfinite(extent)) scale[a] = 1024.0f / extent;
+  }
+  b.keys.resize(queue.size());
+  for (std::size_t k = 0; k < queue.size(); ++k) {
+    const Bounce& x = queue[k];
+    const std::uint64_t octant = (std::signbit(x.dir.x) ? 1u : 0u) | (std::signbit(x.dir.y) ? 2u : 0u) |
+                                 (std::signbit(x.dir.z) ? 4u : 0u);
+    const std::uint64_t morton = spread_bits3(bounce_cell(x.org.x, lo.x, scale.x)) |
+                                 spread_bits3(bounce_cell(x.org.y, lo.y, scale.y)) << 1 |
+                                 spread_bits3(bounce_cell(x.org.z, lo.z, scale.z)) << 2;
+    b.keys[k] = static_cast<std::uint64_t>(std::min(x.depth, 127)) << 33 | octant << 30 | morton;
+  }
+  b.batch.resize(queue.size());
+  constexpr std::size_t kPositions = std::size_t{1} << 24;
+  if (queue.size() < kPositions) {
+    for (std::size_t k = 0; k < queue.size(); ++k) b.keys[k] = b.keys[k] << 24 | k;
+    std::sort(b.keys.begin(), b.keys.end());
+    for (std::size_t k = 0; k < queue.size(); ++k) b.batch[k] = queue[b.keys[k] & (kPositions - 1)];
+  } else {
+    std::vector<std::pair<std::uint64_t, std::size_t>> order(queue.size());
+    for (std::size_t k = 0; k < queue.size(); ++k) order[k] = {b.keys[k], k};
+    std::sort(order.begin(), order.end());
+    for (std::size_t k = 0; k < queue.size(); ++k) b.batch[k] = queue[order[k].second];
+  }
+  queue.clear();
+}
+
+// render_tile_impl for kernels with mirrors and no temporal marks: each sample's primary packets
+// with their bounces (Bounces: a packet's bounces traced at once where they fill half of it in
+// one direction octant), then the bounces left queued, in sorted full packets, until none is
+// left. A pixel's sample whose bounces all came back is done at once; one with a bounce queued
+// gets its colour from its chain of terms once the queue is empty. Samples are summed in order,
+// and every colour by the recursion's operations, so the same bits.
+template <int N, unsigned F>
+void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Image& out, TileRayCounts& counts,
+                         const FrustumCull* cull, const TileKernelOptions& options) {
+  static_assert((F & kReflections) != 0, "for kernels with mirrors");
+  constexpr int kBlockW = packet_block_width(N);
+  constexpr int kBlockH = N / kBlockW;
+  const int spp = std::max(1, fs.settings.spp);
+  const bool aovs = !out.depth.empty();
+  const std::size_t pixels = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  ShadowOrders orders(fs.lights.size(), options);
+  // Kept per thread from tile to tile.
+  struct Scratch {
+    std::vector<glm::vec3> sum;  // spp > 1: the samples' colours so far
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> waiting;  // (pixel, term) with a bounce queued
+    Bounces bounces;
+  };
+  thread_local Scratch scratch;
+  std::vector<glm::vec3>& sum = scratch.sum;
+  auto& waiting = scratch.waiting;
+  Bounces& bounces = scratch.bounces;
+  if (spp > 1) sum.assign(pixels, glm::vec3(0.0f));
+  // A sample's colour: written out (one sample), or added to the pixel's sum.
+  const auto done = [&](std::size_t idx, const glm::vec3& color) {
+    if (spp > 1) {
+      sum[idx] = sum[idx] + color;
+      return;
+    }
+    const glm::vec3 c = glm::vec3(0.0f) + color;  // the sum of one sample
+    float* p = out.pixel(static_cast<int>(idx % static_cast<std::size_t>(w)),
+                         static_cast<int>(idx / static_cast<std::size_t>(w)));
+    p[0] = c.x;
+    p[1] = c.y;
+    p[2] = c.z;
+    p[3] = 1.0f;
+  };
+  for (int s = 0; s < spp; ++s) {
+    double sx, sy;
+    sample_offset(s, sx, sy);
+    bounces.terms.clear();
+    bounces.queue.clear();
+    waiting.clear();
+    for (int by = 0; by < h; by += kBlockH) {
+      for (int bx = 0; bx < w; bx += kBlockW) {
+        int px[N], py[N];
+        unsigned valid = 0;
+        for (int i = 0; i < N; ++i) {
+          px[i] = bx + i % kBlockW;
+          py[i] = by + i / kBlockW;
+          if (px[i] < w && py[i] < h) valid |= 1u << i;
+        }
+        const bool skip =
+            cull != nullptr && cull->misses(x0 + bx, y0 + by, x0 + bx + kBlockW, y0 + by + kBlockH);
+        Lanes<N> lanes;
+        std::uint32_t term[N];
+        std::fill(term, term + N, Bounces::kNone);
+        for (int i = 0; i < N; ++i) {
+          lanes.weight[i] = glm::vec3(1.0f);
+          lanes.color[i] = glm::vec3(0.0f);
+        }
+        unsigned pending = 0;
+        Aov aov[N];
+        if (!skip) {
+          RayLanes<N> primary;
+          for (int i = 0; i < N; ++i) {
+            if (!((valid >> i) & 1u)) continue;
+            const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
+            primary.set(i, r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity());
+          }
+          Aov* first = nullptr;
+          if constexpr ((F & kAovs) != 0) first = s == 0 ? aov : nullptr;
+          pending = trace_radiance<N, F>(fs, primary, valid, 0, lanes, first, counts, nullptr, orders, term, &bounces);
+        } else {
+          // What trace_radiance does for lanes that miss, without the kd-tree.
+          for (int i = 0; i < N; ++i) {
+            if ((valid >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
+          }
+          counts.primary += static_cast<std::uint64_t>(std::popcount(valid));
+          counts.primary_skipped += static_cast<std::uint64_t>(std::popcount(valid));
+        }
+        for (int i = 0; i < N; ++i) {
+          if (!((valid >> i) & 1u)) continue;
+          const std::size_t idx =
+              static_cast<std::size_t>(py[i]) * static_cast<std::size_t>(w) + static_cast<std::size_t>(px[i]);
+          if (s == 0 && aovs) {
+            out.depth[idx] = aov[i].depth;
+            out.normal[3 * idx + 0] = aov[i].normal.x;
+            out.normal[3 * idx + 1] = aov[i].normal.y;
+            out.normal[3 * idx + 2] = aov[i].normal.z;
+          }
+          if ((pending >> i) & 1u) {
+            bounces.terms[term[i]].color = lanes.color[i];
+            waiting.emplace_back(static_cast<std::uint32_t>(idx), term[i]);
+          } else {
+            done(idx, lanes.color[i]);
+          }
+        }
+      }
+    }
+    while (!bounces.queue.empty()) {
+      sort_bounces(bounces);  // into bounces.batch; what these bounces queue goes to bounces.queue
+      const std::vector<Bounce>& batch = bounces.batch;
+      for (std::size_t k = 0; k < batch.size();) {
+        // A packet of up to N bounces of one depth.
+        const int depth = batch[k].depth;
+        RayLanes<N> rays;
+        Lanes<N> lanes;
+        std::uint32_t term[N];
+        std::fill(term, term + N, Bounces::kNone);
+        unsigned active = 0;
+        int n = 0;
+        for (; n < N && k < batch.size() && batch[k].depth == depth; ++n, ++k) {
+          const Bounce& b = batch[k];
+          rays.set(n, b.org, 0.0f, b.dir, std::numeric_limits<float>::infinity());
+          lanes.weight[n] = b.weight;
+          lanes.color[n] = glm::vec3(0.0f);
+          term[n] = bounces.add_child(b.parent);
+          active |= 1u << n;
+        }
+        trace_radiance<N, F>(fs, rays, active, depth, lanes, nullptr, counts, nullptr, orders, term, &bounces);
+        for (int j = 0; j < n; ++j) bounces.terms[term[j]].color = lanes.color[j];
+      }
+    }
+    for (const auto& [idx, t] : waiting) done(idx, bounces.color(t));
+  }
+  if (spp > 1) {
+    const float inv_spp = 1.0f / static_cast<float>(spp);
+    for (std::size_t idx = 0; idx < pixels; ++idx) {
+      const glm::vec3 c = sum[idx] * inv_spp;
+      float* p = out.pixel(static_cast<int>(idx % static_cast<std::size_t>(w)),
+                           static_cast<int>(idx / static_cast<std::size_t>(w)));
+      p[0] = c.x;
+      p[1] = c.y;
+      p[2] = c.z;
+      p[3] = 1.0f;
+    }
+  }
+}
+
 // Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1. `cull`
 // (optional) says which tiles and packets see nothing of the geometry: their rays are not
 // traced (but still marked for temporal coherence: a mesh may move into that space later).
@@ -479,6 +783,12 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
   if (tile_misses && marks == nullptr) {
     fill_missed_tile(fs, w, h, spp, out, counts);
     return;
+  }
+  if constexpr ((F & kReflections) != 0) {
+    if (marks == nullptr) {
+      render_tile_bounces<N, F>(fs, x0, y0, w, h, out, counts, cull, options);
+      return;
+    }
   }
   ShadowOrders orders(fs.lights.size(), options);
   for (int by = 0; by < h; by += kBlockH) {

@@ -22,11 +22,15 @@ struct TileRayCounts {
   /// Of `primary`, those that never entered the kd-tree: their tile or packet provably misses
   /// the geometry's bounds (TileKernelOptions::skip_empty).
   std::uint64_t primary_skipped = 0;
+  /// Of `reflection`, those a packet left to the tile's queue of scattered bounces, traced later
+  /// in packets regrouped from the whole tile (render_kernels.cpp, Bounces).
+  std::uint64_t reflection_regrouped = 0;
   TileRayCounts& operator+=(const TileRayCounts& o) {
     primary += o.primary;
     shadow += o.shadow;
     reflection += o.reflection;
     primary_skipped += o.primary_skipped;
+    reflection_regrouped += o.reflection_regrouped;
     return *this;
   }
   [[nodiscard]] std::uint64_t total() const { return primary + shadow + reflection; }

@@ -76,6 +76,42 @@ TEST(Renderer, EveryIsaGivesTheSamePixels) {
   }
 }
 
+// A packet's mirror bounces that fill less than half of it, or head into more than two direction
+// octants, wait in the tile's queue and are traced later in packets regrouped from the whole
+// tile; the sample's colour is then summed from its chain of terms. The single-ray kernel never
+// regroups (its one lane is a full packet), so it is the recursion's reference: every ISA's
+// packets, with several samples per pixel, odd tiles and deep bounces, must give its bits, and
+// both paths must have been taken.
+TEST(Renderer, RegroupedMirrorBouncesGiveTheRecursionsPixels) {
+  Scene scene = small_default();
+  scene.settings.spp = 2;
+  scene.settings.max_depth = 6;
+  const auto render = [&](bool packets, std::optional<Isa> isa, int tile, TileRayCounts& counts) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    RenderOptions o;
+    o.packets = packets;
+    o.isa = isa;
+    Renderer r(scene, o);
+    const auto fs = r.prepare(0);
+    return image_hash(r.render_frame(*fs, tile, nullptr, &counts));
+  };
+  TileRayCounts single;
+  const std::string reference = render(false, std::nullopt, 32, single);
+  EXPECT_EQ(single.reflection_regrouped, 0u);
+  ASSERT_GT(single.reflection, 0u);
+  for (const Isa isa : compiled_isas()) {
+    if (!cpu_supports(isa)) continue;
+    for (int tile : {32, 13, 64}) {
+      TileRayCounts counts;
+      EXPECT_EQ(render(true, isa, tile, counts), reference) << isa_name(isa) << ", tile " << tile;
+      EXPECT_EQ(counts.reflection, single.reflection) << isa_name(isa) << ", tile " << tile;
+      EXPECT_EQ(counts.shadow, single.shadow) << isa_name(isa) << ", tile " << tile;
+      EXPECT_GT(counts.reflection_regrouped, 0u) << isa_name(isa) << ", tile " << tile;
+      EXPECT_LT(counts.reflection_regrouped, counts.reflection) << isa_name(isa) << ", tile " << tile;
+    }
+  }
+}
+
 // Whether every kd-tree of a prepared frame holds watertight records.
 bool trees_watertight(const FrameState& fs, bool watertight) {
   for (const std::shared_ptr<const KdTree>& tree : fs.geometry->trees) {
