@@ -1,5 +1,6 @@
 // Per-ISA tile rendering: packets of 2x2 primary rays, packet shadow rays per light, mirror
-// reflections recursing as packets, Whitted/Phong shading (Wald et al. 2001, section 3).
+// reflections recursing as packets, Whitted/Phong shading (Wald et al. 2001, section 3). Mirror
+// bounces that scatter are regrouped across the tile's packets (render_tile_bounces).
 //
 // Shading runs lane by lane in scalar float code (common/render/shading.h and the few lines
 // below), the same code at every packet width, so a pixel is the same bits whether its rays
@@ -314,6 +315,101 @@ struct ShadowOrders {
   ShadowOrderChooser& at(std::size_t light, int depth) { return per_light[2 * light + (depth > 0 ? 1 : 0)]; }
 };
 
+/// A packet's hits as its shading needs them: their surfaces and the light gathered so far.
+/// trace_radiance runs its steps in turn; render_tile_bounces runs each step over all the
+/// packets of a batch, so that the shadow rays of many packets can be regrouped between them.
+template <int N, unsigned F>
+struct HitShading {
+  SurfaceSample surf[N];
+  glm::vec3 local[N];
+  unsigned hit_lanes = 0;
+
+  /// The surfaces of the active lanes' hits, their ambient and emitted light, and the depth and
+  /// normal channels; a lane that missed gets the background in its colour.
+  void surfaces(const FrameState& fs, const RayLanes<N>& rays, unsigned active, const RayHit (&hit)[N],
+                Lanes<N>& lanes, Aov* aov) {
+    for (int i = 0; i < N; ++i) {
+      if (!((active >> i) & 1u)) continue;
+      if (hit[i].prim == kNoHit) {
+        lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
+        continue;
+      }
+      hit_lanes |= 1u << i;
+      const RayQuery q = rays.query(i);
+      surf[i] = surface_at(fs, q.dir, hit[i].prim, hit[i].beta, hit[i].gamma);
+      const Material& m = *surf[i].material;
+      local[i] = fs.ambient * m.diffuse + m.emission;
+      if constexpr ((F & kAovs) != 0) {
+        if (aov != nullptr) {
+          // The depth channel gets the distance recomputed in double (exact for grazing rays too).
+          const FrameGeometry& g = *fs.geometry;
+          const glm::uvec3 tri = g.triangles[hit[i].prim];
+          aov[i].depth = refined_distance(q.org, q.dir, g.positions[tri.x], g.positions[tri.y], g.positions[tri.z],
+                                          hit[i].t);
+          aov[i].normal = surf[i].normal;
+        }
+      }
+    }
+  }
+
+  /// The hits' shadow rays towards `light` in `shadow` and their unit directions in `to_light`;
+  /// returns the lanes that have one.
+  unsigned shadow_rays(const PointLight& light, RayLanes<N>& shadow, glm::vec3 (&to_light)[N]) const {
+    unsigned want = 0;
+    for (int i = 0; i < N; ++i) {
+      if (!((hit_lanes >> i) & 1u)) continue;
+      glm::vec3 d;
+      if (!shadow_ray_parts(surf[i], light, d, to_light[i])) continue;
+      want |= 1u << i;
+      shadow.set(i, surf[i].point, 0.0f, d, 1.0f);  // shadow_ray's ray
+    }
+    return want;
+  }
+
+  /// Adds `light` to the lanes of `lit` (their shadow rays unblocked).
+  void add_light(const PointLight& light, unsigned lit, const glm::vec3 (&to_light)[N]) {
+    if constexpr ((F & kHighlights) == 0) {
+      for (int i = 0; i < N; ++i) {
+        if (!((lit >> i) & 1u)) continue;
+        const SurfaceSample& s = surf[i];
+        const float n_dot_l = glm::dot(s.normal, to_light[i]);
+        local[i] = local[i] + light.color * (s.material->diffuse * n_dot_l);
+      }
+    } else {
+      // Diffuse per lane; the highlights' powers of all lit lanes in one batch
+      // (det_powf_lanes: det_powf's bits, eight lanes side by side), then added per lane.
+      glm::vec3 contrib[N]{};  // read only where `lit`; zeroed for GCC's -Wmaybe-uninitialized
+      float base[N], power[N], highlight[N];
+      int slot[N]{};
+      unsigned shiny = 0;
+      std::size_t powers = 0;
+      for (int i = 0; i < N; ++i) {
+        if (!((lit >> i) & 1u)) continue;
+        const SurfaceSample& s = surf[i];
+        const Material& m = *s.material;
+        const float n_dot_l = glm::dot(s.normal, to_light[i]);
+        contrib[i] = m.diffuse * n_dot_l;
+        if (max3(m.specular) > 0.0f) {
+          const glm::vec3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
+          const float r_dot_v = glm::dot(r, s.view);
+          if (r_dot_v > 0.0f) {
+            shiny |= 1u << i;
+            base[powers] = r_dot_v;
+            power[powers] = m.shininess;
+            slot[i] = static_cast<int>(powers++);
+          }
+        }
+      }
+      if (shiny != 0) det_powf_lanes(base, power, highlight, powers);
+      for (int i = 0; i < N; ++i) {
+        if (!((lit >> i) & 1u)) continue;
+        if ((shiny >> i) & 1u) contrib[i] = contrib[i] + surf[i].material->specular * highlight[slot[i]];
+        local[i] = local[i] + light.color * contrib[i];
+      }
+    }
+  }
+};
+
 // Every instantiation does, for every lane, the same operations in the same order as the
 // general one (F = kAll) does for a frame with those features: what F leaves out is only work
 // whose result the frame never uses (a light loop over no lights, a mirror test no material
@@ -326,8 +422,97 @@ struct ShadowOrders {
 // in the term. Without `bounces`, 0.
 template <int N, unsigned F>
 unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
-                    Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders,
-                    std::uint32_t* terms = nullptr, Bounces* bounces = nullptr) {
+                        Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders,
+                        std::uint32_t* terms = nullptr, Bounces* bounces = nullptr);
+
+/// The last step of a packet's shading: each hit's light, weighted, into its lane's colour, and
+/// its mirror bounce traced (trace_radiance's recursion; with `bounces`, traced at once or
+/// queued, as trace_radiance says). Returns trace_radiance's pending lanes.
+template <int N, unsigned F>
+unsigned finish_hits(const FrameState& fs, const HitShading<N, F>& sh, int depth, Lanes<N>& lanes,
+                     TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders, std::uint32_t* terms,
+                     Bounces* bounces) {
+  const unsigned hit_lanes = sh.hit_lanes;
+  if constexpr ((F & kReflections) == 0) {
+    for (int i = 0; i < N; ++i) {
+      if ((hit_lanes >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * sh.local[i];
+    }
+    return 0;
+  } else {
+    // Mirror reflections, as one packet per bounce, cut off by depth and by ray weight.
+    RayLanes<N> refl;
+    Lanes<N> next;
+    unsigned bounce = 0;
+    for (int i = 0; i < N; ++i) {
+      if (!((hit_lanes >> i) & 1u)) continue;
+      lanes.color[i] = lanes.color[i] + lanes.weight[i] * sh.local[i];
+      const SurfaceSample& s = sh.surf[i];
+      const Material& m = *s.material;
+      if (!m.reflective || depth >= fs.settings.max_depth) continue;
+      const glm::vec3 w = lanes.weight[i] * m.specular;
+      if (!(max3(w) >= fs.settings.min_weight) || !(max3(w) > 0.0f)) continue;
+      const glm::vec3 d = s.dir;
+      glm::vec3 r = d - s.normal * (2.0f * glm::dot(d, s.normal));
+      // An interpolated normal can send the mirror ray below the surface; use the true one then.
+      if (!(glm::dot(r, s.geometric) > 0.0f)) r = d - s.geometric * (2.0f * glm::dot(d, s.geometric));
+      bounce |= 1u << i;
+      next.weight[i] = w;
+      next.color[i] = glm::vec3(0.0f);
+      refl.set(i, s.point, 0.0f, r, std::numeric_limits<float>::infinity());
+    }
+    if (bounce == 0) return 0;
+    if (bounces != nullptr) {
+      unsigned signs[3];
+      for (int a = 0; a < 3; ++a) signs[a] = bits(sign_bit(vfloat<N>::load(refl.dir[a]))) & bounce;
+      int octants = 0;
+      for (unsigned left = bounce; left != 0;) {
+        const int f = __builtin_ctz(left);
+        const unsigned mx = ((signs[0] >> f) & 1u) ? signs[0] : ~signs[0];
+        const unsigned my = ((signs[1] >> f) & 1u) ? signs[1] : ~signs[1];
+        const unsigned mz = ((signs[2] >> f) & 1u) ? signs[2] : ~signs[2];
+        left &= ~(mx & my & mz);
+        ++octants;
+      }
+      if (octants > 2 || 2 * std::popcount(bounce) < N) {
+        for (int i = 0; i < N; ++i) {
+          if (!((bounce >> i) & 1u)) continue;
+          if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
+          const RayQuery q = refl.query(i);
+          bounces->queue.push_back(Bounce{q.org, q.dir, next.weight[i], terms[i], depth + 1});
+        }
+        counts.reflection_regrouped += static_cast<std::uint64_t>(std::popcount(bounce));
+        return bounce;
+      }
+      // Traced at once. A lane whose bounces all came back adds their colour as the recursion
+      // does; one with a bounce queued further down links its child's term instead.
+      std::uint32_t child[N];
+      std::fill(child, child + N, Bounces::kNone);
+      const unsigned pending =
+          trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders, child, bounces);
+      for (int i = 0; i < N; ++i) {
+        if (!((bounce >> i) & 1u)) continue;
+        if ((pending >> i) & 1u) {
+          if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
+          bounces->terms[terms[i]].child = static_cast<std::int32_t>(child[i]);
+          bounces->terms[child[i]].color = next.color[i];
+        } else {
+          lanes.color[i] = lanes.color[i] + next.color[i];
+        }
+      }
+      return pending;
+    }
+    trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders);
+    for (int i = 0; i < N; ++i) {
+      if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
+    }
+    return 0;
+  }
+}
+
+template <int N, unsigned F>
+unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned active, int depth, Lanes<N>& lanes,
+                        Aov* aov, TileRayCounts& counts, MarkRecorder* marks, ShadowOrders& orders,
+                        std::uint32_t* terms, Bounces* bounces) {
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
   RayHit hit[N];
   closest_hits<N>(fs, rays, active, hit);
@@ -358,32 +543,9 @@ unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned 
     }
     return 0;
   } else {
-    SurfaceSample surf[N];
-    glm::vec3 local[N];
-    unsigned hit_lanes = 0;
-    for (int i = 0; i < N; ++i) {
-      if (!((active >> i) & 1u)) continue;
-      if (hit[i].prim == kNoHit) {
-        lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
-        continue;
-      }
-      hit_lanes |= 1u << i;
-      const RayQuery q = rays.query(i);
-      surf[i] = surface_at(fs, q.dir, hit[i].prim, hit[i].beta, hit[i].gamma);
-      const Material& m = *surf[i].material;
-      local[i] = fs.ambient * m.diffuse + m.emission;
-      if constexpr ((F & kAovs) != 0) {
-        if (aov != nullptr) {
-          // The depth channel gets the distance recomputed in double (exact for grazing rays too).
-          const FrameGeometry& g = *fs.geometry;
-          const glm::uvec3 tri = g.triangles[hit[i].prim];
-          aov[i].depth = refined_distance(q.org, q.dir, g.positions[tri.x], g.positions[tri.y], g.positions[tri.z],
-                                          hit[i].t);
-          aov[i].normal = surf[i].normal;
-        }
-      }
-    }
-    if (hit_lanes == 0) return 0;
+    HitShading<N, F> sh;
+    sh.surfaces(fs, rays, active, hit, lanes, aov);
+    if (sh.hit_lanes == 0) return 0;
 
     if constexpr ((F & kShadows) != 0) {
       if (marks != nullptr && !fs.lights.empty()) marks->shaded();
@@ -392,14 +554,7 @@ unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned 
         const PointLight& light = fs.lights[light_index];
         RayLanes<N> shadow;
         glm::vec3 to_light[N]{};  // read only where `want`; zeroed for GCC's -Wmaybe-uninitialized
-        unsigned want = 0;
-        for (int i = 0; i < N; ++i) {
-          if (!((hit_lanes >> i) & 1u)) continue;
-          glm::vec3 d;
-          if (!shadow_ray_parts(surf[i], light, d, to_light[i])) continue;
-          want |= 1u << i;
-          shadow.set(i, surf[i].point, 0.0f, d, 1.0f);  // shadow_ray's ray
-        }
+        const unsigned want = sh.shadow_rays(light, shadow, to_light);
         if (want == 0) continue;
         counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
         unsigned by_static = 0;
@@ -412,123 +567,11 @@ unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned 
           const unsigned open = want & ~by_static;
           if (open != 0) mark_shadows<N>(*marks, shadow, open);
         }
-        const unsigned lit = want & ~blocked;
-        if constexpr ((F & kHighlights) == 0) {
-          for (int i = 0; i < N; ++i) {
-            if (!((lit >> i) & 1u)) continue;
-            const SurfaceSample& s = surf[i];
-            const float n_dot_l = glm::dot(s.normal, to_light[i]);
-            local[i] = local[i] + light.color * (s.material->diffuse * n_dot_l);
-          }
-        } else {
-          // Diffuse per lane; the highlights' powers of all lit lanes in one batch
-          // (det_powf_lanes: det_powf's bits, eight lanes side by side), then added per lane.
-          glm::vec3 contrib[N]{};  // read only where `lit`; zeroed for GCC's -Wmaybe-uninitialized
-          float base[N], power[N], highlight[N];
-          int slot[N]{};
-          unsigned shiny = 0;
-          std::size_t powers = 0;
-          for (int i = 0; i < N; ++i) {
-            if (!((lit >> i) & 1u)) continue;
-            const SurfaceSample& s = surf[i];
-            const Material& m = *s.material;
-            const float n_dot_l = glm::dot(s.normal, to_light[i]);
-            contrib[i] = m.diffuse * n_dot_l;
-            if (max3(m.specular) > 0.0f) {
-              const glm::vec3 r = s.normal * (2.0f * n_dot_l) - to_light[i];
-              const float r_dot_v = glm::dot(r, s.view);
-              if (r_dot_v > 0.0f) {
-                shiny |= 1u << i;
-                base[powers] = r_dot_v;
-                power[powers] = m.shininess;
-                slot[i] = static_cast<int>(powers++);
-              }
-            }
-          }
-          if (shiny != 0) det_powf_lanes(base, power, highlight, powers);
-          for (int i = 0; i < N; ++i) {
-            if (!((lit >> i) & 1u)) continue;
-            if ((shiny >> i) & 1u) contrib[i] = contrib[i] + surf[i].material->specular * highlight[slot[i]];
-            local[i] = local[i] + light.color * contrib[i];
-          }
-        }
+        sh.add_light(light, want & ~blocked, to_light);
       }
     }
-
-    if constexpr ((F & kReflections) == 0) {
-      for (int i = 0; i < N; ++i) {
-        if ((hit_lanes >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * local[i];
-      }
-    } else {
-      // Mirror reflections, as one packet per bounce, cut off by depth and by ray weight.
-      RayLanes<N> refl;
-      Lanes<N> next;
-      unsigned bounce = 0;
-      for (int i = 0; i < N; ++i) {
-        if (!((hit_lanes >> i) & 1u)) continue;
-        lanes.color[i] = lanes.color[i] + lanes.weight[i] * local[i];
-        const SurfaceSample& s = surf[i];
-        const Material& m = *s.material;
-        if (!m.reflective || depth >= fs.settings.max_depth) continue;
-        const glm::vec3 w = lanes.weight[i] * m.specular;
-        if (!(max3(w) >= fs.settings.min_weight) || !(max3(w) > 0.0f)) continue;
-        const glm::vec3 d = s.dir;
-        glm::vec3 r = d - s.normal * (2.0f * glm::dot(d, s.normal));
-        // An interpolated normal can send the mirror ray below the surface; use the true one then.
-        if (!(glm::dot(r, s.geometric) > 0.0f)) r = d - s.geometric * (2.0f * glm::dot(d, s.geometric));
-        bounce |= 1u << i;
-        next.weight[i] = w;
-        next.color[i] = glm::vec3(0.0f);
-        refl.set(i, s.point, 0.0f, r, std::numeric_limits<float>::infinity());
-      }
-      if (bounce == 0) return 0;
-      if (bounces != nullptr) {
-        unsigned signs[3];
-        for (int a = 0; a < 3; ++a) signs[a] = bits(sign_bit(vfloat<N>::load(refl.dir[a]))) & bounce;
-        int octants = 0;
-        for (unsigned left = bounce; left != 0;) {
-          const int f = __builtin_ctz(left);
-          const unsigned mx = ((signs[0] >> f) & 1u) ? signs[0] : ~signs[0];
-          const unsigned my = ((signs[1] >> f) & 1u) ? signs[1] : ~signs[1];
-          const unsigned mz = ((signs[2] >> f) & 1u) ? signs[2] : ~signs[2];
-          left &= ~(mx & my & mz);
-          ++octants;
-        }
-        if (octants > 2 || 2 * std::popcount(bounce) < N) {
-          for (int i = 0; i < N; ++i) {
-            if (!((bounce >> i) & 1u)) continue;
-            if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
-            const RayQuery q = refl.query(i);
-            bounces->queue.push_back(Bounce{q.org, q.dir, next.weight[i], terms[i], depth + 1});
-          }
-          counts.reflection_regrouped += static_cast<std::uint64_t>(std::popcount(bounce));
-          return bounce;
-        }
-        // Traced at once. A lane whose bounces all came back adds their colour as the recursion
-        // does; one with a bounce queued further down links its child's term instead.
-        std::uint32_t child[N];
-        std::fill(child, child + N, Bounces::kNone);
-        const unsigned pending =
-            trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders, child, bounces);
-        for (int i = 0; i < N; ++i) {
-          if (!((bounce >> i) & 1u)) continue;
-          if ((pending >> i) & 1u) {
-            if (terms[i] == Bounces::kNone) terms[i] = bounces->add();
-            bounces->terms[terms[i]].child = static_cast<std::int32_t>(child[i]);
-            bounces->terms[child[i]].color = next.color[i];
-          } else {
-            lanes.color[i] = lanes.color[i] + next.color[i];
-          }
-        }
-        return pending;
-      }
-      trace_radiance<N, F>(fs, refl, bounce, depth + 1, next, nullptr, counts, marks, orders);
-      for (int i = 0; i < N; ++i) {
-        if ((bounce >> i) & 1u) lanes.color[i] = lanes.color[i] + next.color[i];
-      }
-    }
+    return finish_hits<N, F>(fs, sh, depth, lanes, counts, marks, orders, terms, bounces);
   }
-  return 0;
 }
 
 /// Fills a tile none of whose primary rays can hit anything with what a miss gives each pixel
@@ -625,6 +668,150 @@ void sort_bounces(Bounces& b) {
   queue.clear();
 }
 
+/// A packet of a sorted batch of bounces (trace_batch) while its shadow rays are out.
+template <int N, unsigned F>
+struct BatchPacket {
+  RayLanes<N> rays;
+  Lanes<N> lanes;
+  std::uint32_t term[N];
+  unsigned active = 0;
+  int depth = 0;
+  HitShading<N, F> sh;
+  RayLanes<N> shadow;  // the present light's shadow rays
+  glm::vec3 to_light[N];
+  unsigned want = 0, blocked = 0;
+};
+
+/// One light's shadow rays of a batch, as (packet, lane) with their sort keys.
+struct BatchShadows {
+  std::vector<std::uint64_t> keys;  // sort key << 24 | index into `at`
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> at;  // (packet, lane)
+  std::vector<std::pair<std::uint64_t, std::size_t>> order;  // the same for 2^24 rays or more
+};
+
+/// A direction's octant (3 bits) and the 30-bit Morton code of a point in the box [lo, lo +
+/// 1024 / scale), as one key.
+inline std::uint64_t octant_morton(const glm::vec3& dir, const glm::vec3& p, const glm::vec3& lo,
+                                   const glm::vec3& scale) {
+  const std::uint64_t octant = (std::signbit(dir.x) ? 1u : 0u) | (std::signbit(dir.y) ? 2u : 0u) |
+                               (std::signbit(dir.z) ? 4u : 0u);
+  return octant << 30 | spread_bits3(bounce_cell(p.x, lo.x, scale.x)) |
+         spread_bits3(bounce_cell(p.y, lo.y, scale.y)) << 1 | spread_bits3(bounce_cell(p.z, lo.z, scale.z)) << 2;
+}
+
+/// 1024 / extent per axis of the box [lo, hi] (0 where it is empty or not finite).
+inline glm::vec3 cell_scale(const glm::vec3& lo, const glm::vec3& hi) {
+  glm::vec3 scale(0.0f);
+  for (int a = 0; a < 3; ++a) {
+    const float extent = hi[a] - lo[a];
+    if (extent > 0.0f && std::isfinite(extent)) scale[a] = 1024.0f / extent;
+  }
+  return scale;
+}
+
+/// Traces bounces.batch (sorted by sort_bounces) in packets of up to N bounces of one depth. Each
+/// step of their shading runs over all the packets in turn (HitShading), and between them each
+/// light's shadow rays of all the packets are sorted by direction octant and the Morton code of
+/// their origin, and traced in full packets: a packet of scattered bounces has scattered hits,
+/// whose shadow rays would otherwise fill a few lanes of a packet each. Every ray gets the same
+/// answer in any packet, and each hit is shaded by the same operations in the same order (the
+/// lights in turn), so the pixels are the same bits.
+template <int N, unsigned F>
+void trace_batch(const FrameState& fs, Bounces& bounces, std::vector<BatchPacket<N, F>>& packets,
+                 BatchShadows& shadows, TileRayCounts& counts, ShadowOrders& orders) {
+  const std::vector<Bounce>& batch = bounces.batch;
+  packets.clear();
+  for (std::size_t k = 0; k < batch.size();) {
+    BatchPacket<N, F>& p = packets.emplace_back();
+    p.depth = batch[k].depth;
+    std::fill(p.term, p.term + N, Bounces::kNone);
+    int n = 0;
+    for (; n < N && k < batch.size() && batch[k].depth == p.depth; ++n, ++k) {
+      const Bounce& b = batch[k];
+      p.rays.set(n, b.org, 0.0f, b.dir, std::numeric_limits<float>::infinity());
+      p.lanes.weight[n] = b.weight;
+      p.lanes.color[n] = glm::vec3(0.0f);
+      p.term[n] = bounces.add_child(b.parent);
+      p.active |= 1u << n;
+    }
+    counts.reflection += static_cast<std::uint64_t>(n);
+    RayHit hit[N];
+    closest_hits<N>(fs, p.rays, p.active, hit);
+    p.sh.surfaces(fs, p.rays, p.active, hit, p.lanes, nullptr);
+  }
+  if constexpr ((F & kShadows) != 0) {
+    for (std::size_t light_index = 0; light_index < fs.lights.size(); ++light_index) {
+      const PointLight& light = fs.lights[light_index];
+      shadows.at.clear();
+      glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+      for (std::size_t q = 0; q < packets.size(); ++q) {
+        BatchPacket<N, F>& p = packets[q];
+        p.want = p.sh.hit_lanes != 0 ? p.sh.shadow_rays(light, p.shadow, p.to_light) : 0u;
+        p.blocked = 0;
+        for (unsigned m = p.want; m != 0; m &= m - 1) {
+          const int i = __builtin_ctz(m);
+          shadows.at.emplace_back(static_cast<std::uint32_t>(q), static_cast<std::uint32_t>(i));
+          lo = glm::min(lo, p.sh.surf[i].point);
+          hi = glm::max(hi, p.sh.surf[i].point);
+        }
+      }
+      const std::size_t rays = shadows.at.size();
+      if (rays == 0) continue;
+      counts.shadow += static_cast<std::uint64_t>(rays);
+      const glm::vec3 scale = cell_scale(lo, hi);
+      const auto key = [&](std::size_t j) {
+        const auto [q, i] = shadows.at[j];
+        const RayLanes<N>& r = packets[q].shadow;
+        return octant_morton(glm::vec3(r.dir[0][i], r.dir[1][i], r.dir[2][i]), packets[q].sh.surf[i].point, lo, scale);
+      };
+      // The rays in sorted order: index j of the sorted sequence -> index into `at`.
+      constexpr std::size_t kPositions = std::size_t{1} << 24;
+      const bool small = rays < kPositions;
+      if (small) {
+        shadows.keys.resize(rays);
+        for (std::size_t j = 0; j < rays; ++j) shadows.keys[j] = key(j) << 24 | j;
+        std::sort(shadows.keys.begin(), shadows.keys.end());
+      } else {
+        shadows.order.resize(rays);
+        for (std::size_t j = 0; j < rays; ++j) shadows.order[j] = {key(j), j};
+        std::sort(shadows.order.begin(), shadows.order.end());
+      }
+      const auto sorted = [&](std::size_t j) {
+        return small ? static_cast<std::size_t>(shadows.keys[j] & (kPositions - 1)) : shadows.order[j].second;
+      };
+      ShadowOrderChooser& chooser = orders.at(light_index, 1);
+      for (std::size_t j = 0; j < rays; j += N) {
+        const int n = static_cast<int>(std::min<std::size_t>(N, rays - j));
+        RayLanes<N> group;
+        for (int l = 0; l < n; ++l) {
+          const auto [q, i] = shadows.at[sorted(j + static_cast<std::size_t>(l))];
+          const RayLanes<N>& r = packets[q].shadow;
+          group.set(l, glm::vec3(r.org[0][i], r.org[1][i], r.org[2][i]), r.t_min[i],
+                    glm::vec3(r.dir[0][i], r.dir[1][i], r.dir[2][i]), r.t_max[i]);
+        }
+        const unsigned all = (1u << n) - 1u;  // n <= N <= 16
+        const unsigned blocked = occluded_lanes<N>(fs, group, all, chooser);
+        for (int l = 0; l < n; ++l) {
+          if (!((blocked >> l) & 1u)) continue;
+          const auto [q, i] = shadows.at[sorted(j + static_cast<std::size_t>(l))];
+          packets[q].blocked |= 1u << i;
+        }
+      }
+      for (BatchPacket<N, F>& p : packets) {
+        if (p.want != 0) p.sh.add_light(light, p.want & ~p.blocked, p.to_light);
+      }
+    }
+  }
+  for (BatchPacket<N, F>& p : packets) {
+    if (p.sh.hit_lanes != 0) {
+      finish_hits<N, F>(fs, p.sh, p.depth, p.lanes, counts, nullptr, orders, p.term, &bounces);
+    }
+    for (int j = 0; j < N; ++j) {
+      if ((p.active >> j) & 1u) bounces.terms[p.term[j]].color = p.lanes.color[j];
+    }
+  }
+}
+
 // render_tile_impl for kernels with mirrors and no temporal marks: each sample's primary packets
 // with their bounces (Bounces: a packet's bounces traced at once where they fill half of it in
 // one direction octant), then the bounces left queued, in sorted full packets, until none is
@@ -646,6 +833,8 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
     std::vector<glm::vec3> sum;  // spp > 1: the samples' colours so far
     std::vector<std::pair<std::uint32_t, std::uint32_t>> waiting;  // (pixel, term) with a bounce queued
     Bounces bounces;
+    std::vector<BatchPacket<N, F>> packets;
+    BatchShadows shadows;
   };
   thread_local Scratch scratch;
   std::vector<glm::vec3>& sum = scratch.sum;
@@ -731,27 +920,7 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
     }
     while (!bounces.queue.empty()) {
       sort_bounces(bounces);  // into bounces.batch; what these bounces queue goes to bounces.queue
-      const std::vector<Bounce>& batch = bounces.batch;
-      for (std::size_t k = 0; k < batch.size();) {
-        // A packet of up to N bounces of one depth.
-        const int depth = batch[k].depth;
-        RayLanes<N> rays;
-        Lanes<N> lanes;
-        std::uint32_t term[N];
-        std::fill(term, term + N, Bounces::kNone);
-        unsigned active = 0;
-        int n = 0;
-        for (; n < N && k < batch.size() && batch[k].depth == depth; ++n, ++k) {
-          const Bounce& b = batch[k];
-          rays.set(n, b.org, 0.0f, b.dir, std::numeric_limits<float>::infinity());
-          lanes.weight[n] = b.weight;
-          lanes.color[n] = glm::vec3(0.0f);
-          term[n] = bounces.add_child(b.parent);
-          active |= 1u << n;
-        }
-        trace_radiance<N, F>(fs, rays, active, depth, lanes, nullptr, counts, nullptr, orders, term, &bounces);
-        for (int j = 0; j < n; ++j) bounces.terms[term[j]].color = lanes.color[j];
-      }
+      trace_batch<N, F>(fs, bounces, scratch.packets, scratch.shadows, counts, orders);
     }
     for (const auto& [idx, t] : waiting) done(idx, bounces.color(t));
   }

@@ -78,7 +78,8 @@ TEST(Renderer, EveryIsaGivesTheSamePixels) {
 
 // A packet's mirror bounces that fill less than half of it, or head into more than two direction
 // octants, wait in the tile's queue and are traced later in packets regrouped from the whole
-// tile; the sample's colour is then summed from its chain of terms. The single-ray kernel never
+// tile, and so are their hits' shadow rays; the sample's colour is then summed from its chain of
+// terms. The single-ray kernel never
 // regroups (its one lane is a full packet), so it is the recursion's reference: every ISA's
 // packets, with several samples per pixel, odd tiles and deep bounces, must give its bits, and
 // both paths must have been taken.
