@@ -245,6 +245,35 @@ void mark_shadows(MarkRecorder& marks, const RayLanes<N>& rays, unsigned lanes) 
   marks.shadow(list.n, list.org, list.dir, list.t_end);
 }
 
+/// An order of n items by a key of at most 40 bits, ties by position: sorted as 64-bit words
+/// with the position in the low 24 bits, or as (key, position) pairs from 2^24 items on.
+class KeySort {
+ public:
+  template <class Key>
+  void sort(std::size_t n, Key&& key) {
+    packed_ = n < kPositions;
+    if (packed_) {
+      words_.resize(n);
+      for (std::size_t j = 0; j < n; ++j) words_[j] = key(j) << 24 | j;
+      std::sort(words_.begin(), words_.end());
+    } else {
+      pairs_.resize(n);
+      for (std::size_t j = 0; j < n; ++j) pairs_[j] = {key(j), j};
+      std::sort(pairs_.begin(), pairs_.end());
+    }
+  }
+  /// The position of the k-th item in the order.
+  [[nodiscard]] std::size_t at(std::size_t k) const {
+    return packed_ ? static_cast<std::size_t>(words_[k] & (kPositions - 1)) : pairs_[k].second;
+  }
+
+ private:
+  static constexpr std::size_t kPositions = std::size_t{1} << 24;
+  std::vector<std::uint64_t> words_;
+  std::vector<std::pair<std::uint64_t, std::size_t>> pairs_;
+  bool packed_ = true;
+};
+
 /// Mirror bounces as render_tile_bounces traces them. A packet whose bounces fill at least half
 /// its lanes traces them at once, as one packet (they left neighbouring pixels' hits, so they
 /// mostly stay together). Fewer bounces, which left the packet's hits in scattered directions,
@@ -268,7 +297,7 @@ struct Bounces {
   std::vector<Term> terms;
   std::vector<Bounce> queue;          // waiting to be traced
   std::vector<Bounce> batch;          // the queue taken in sorted order
-  std::vector<std::uint64_t> keys;    // sort_bounces' scratch
+  KeySort order;                      // sort_bounces' scratch
   std::vector<std::uint32_t> path;    // color()'s scratch
   static constexpr std::uint32_t kNone = ~std::uint32_t{0};
 
@@ -625,70 +654,6 @@ inline std::uint64_t spread_bits3(std::uint64_t x) {
   return x;
 }
 
-/// Moves the queue into `batch` sorted so that a packet gets rays of one depth and direction
-/// octant whose origins lie close together: by depth, octant, the Morton code of the origin in
-/// the queue's box (10 bits per axis), then queue position. Sorted as 64-bit keys (depth 7 bits,
-/// octant 3, Morton code 30, position 24) and gathered; a queue of 2^24 bounces or more (one per
-/// pixel of a tile of 4096 x 4096 pixels or more) is sorted by the same order as (key, position)
-/// pairs. Depths are at most 64 (RenderSettings::max_depth, clamped by the loaders).
-void sort_bounces(Bounces& b) {
-  std::vector<Bounce>& queue = b.queue;
-  glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-  for (const Bounce& x : queue) {
-    lo = glm::min(lo, x.org);
-    hi = glm::max(hi, x.org);
-  }
-  glm::vec3 scale(0.0f);
-  for (int a = 0; a < 3; ++a) {
-    const float extent = hi[a] - lo[a];
-    if (extent > 0.0f && std::isfinite(extent)) scale[a] = 1024.0f / extent;
-  }
-  b.keys.resize(queue.size());
-  for (std::size_t k = 0; k < queue.size(); ++k) {
-    const Bounce& x = queue[k];
-    const std::uint64_t octant = (std::signbit(x.dir.x) ? 1u : 0u) | (std::signbit(x.dir.y) ? 2u : 0u) |
-                                 (std::signbit(x.dir.z) ? 4u : 0u);
-    const std::uint64_t morton = spread_bits3(bounce_cell(x.org.x, lo.x, scale.x)) |
-                                 spread_bits3(bounce_cell(x.org.y, lo.y, scale.y)) << 1 |
-                                 spread_bits3(bounce_cell(x.org.z, lo.z, scale.z)) << 2;
-    b.keys[k] = static_cast<std::uint64_t>(std::min(x.depth, 127)) << 33 | octant << 30 | morton;
-  }
-  b.batch.resize(queue.size());
-  constexpr std::size_t kPositions = std::size_t{1} << 24;
-  if (queue.size() < kPositions) {
-    for (std::size_t k = 0; k < queue.size(); ++k) b.keys[k] = b.keys[k] << 24 | k;
-    std::sort(b.keys.begin(), b.keys.end());
-    for (std::size_t k = 0; k < queue.size(); ++k) b.batch[k] = queue[b.keys[k] & (kPositions - 1)];
-  } else {
-    std::vector<std::pair<std::uint64_t, std::size_t>> order(queue.size());
-    for (std::size_t k = 0; k < queue.size(); ++k) order[k] = {b.keys[k], k};
-    std::sort(order.begin(), order.end());
-    for (std::size_t k = 0; k < queue.size(); ++k) b.batch[k] = queue[order[k].second];
-  }
-  queue.clear();
-}
-
-/// A packet of a sorted batch of bounces (trace_batch) while its shadow rays are out.
-template <int N, unsigned F>
-struct BatchPacket {
-  RayLanes<N> rays;
-  Lanes<N> lanes;
-  std::uint32_t term[N];
-  unsigned active = 0;
-  int depth = 0;
-  HitShading<N, F> sh;
-  RayLanes<N> shadow;  // the present light's shadow rays
-  glm::vec3 to_light[N];
-  unsigned want = 0, blocked = 0;
-};
-
-/// One light's shadow rays of a batch, as (packet, lane) with their sort keys.
-struct BatchShadows {
-  std::vector<std::uint64_t> keys;  // sort key << 24 | index into `at`
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> at;  // (packet, lane)
-  std::vector<std::pair<std::uint64_t, std::size_t>> order;  // the same for 2^24 rays or more
-};
-
 /// A direction's octant (3 bits) and the 30-bit Morton code of a point in the box [lo, lo +
 /// 1024 / scale), as one key.
 inline std::uint64_t octant_morton(const glm::vec3& dir, const glm::vec3& p, const glm::vec3& lo,
@@ -708,6 +673,47 @@ inline glm::vec3 cell_scale(const glm::vec3& lo, const glm::vec3& hi) {
   }
   return scale;
 }
+
+/// Moves the queue into `batch` sorted so that a packet gets rays of one depth and direction
+/// octant whose origins lie close together: by depth, octant, the Morton code of the origin in
+/// the queue's box (10 bits per axis), then queue position. Depths are at most 64
+/// (RenderSettings::max_depth).
+void sort_bounces(Bounces& b) {
+  std::vector<Bounce>& queue = b.queue;
+  glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+  for (const Bounce& x : queue) {
+    lo = glm::min(lo, x.org);
+    hi = glm::max(hi, x.org);
+  }
+  const glm::vec3 scale = cell_scale(lo, hi);
+  b.order.sort(queue.size(), [&](std::size_t k) {
+    const Bounce& x = queue[k];
+    return static_cast<std::uint64_t>(std::min(x.depth, 127)) << 33 | octant_morton(x.dir, x.org, lo, scale);
+  });
+  b.batch.resize(queue.size());
+  for (std::size_t k = 0; k < queue.size(); ++k) b.batch[k] = queue[b.order.at(k)];
+  queue.clear();
+}
+
+/// A packet of a sorted batch of bounces (trace_batch) while its shadow rays are out.
+template <int N, unsigned F>
+struct BatchPacket {
+  RayLanes<N> rays;
+  Lanes<N> lanes;
+  std::uint32_t term[N];
+  unsigned active = 0;
+  int depth = 0;
+  HitShading<N, F> sh;
+  RayLanes<N> shadow;  // the present light's shadow rays
+  glm::vec3 to_light[N];
+  unsigned want = 0, blocked = 0;
+};
+
+/// One light's shadow rays of a batch, as (packet, lane) with their sort keys.
+struct BatchShadows {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> at;  // (packet, lane)
+  KeySort order;                                             // of `at`
+};
 
 /// Traces bounces.batch (sorted by sort_bounces) in packets of up to N bounces of one depth. Each
 /// step of their shading runs over all the packets in turn (HitShading), and between them each
@@ -764,27 +770,13 @@ void trace_batch(const FrameState& fs, Bounces& bounces, std::vector<BatchPacket
         const RayLanes<N>& r = packets[q].shadow;
         return octant_morton(glm::vec3(r.dir[0][i], r.dir[1][i], r.dir[2][i]), packets[q].sh.surf[i].point, lo, scale);
       };
-      // The rays in sorted order: index j of the sorted sequence -> index into `at`.
-      constexpr std::size_t kPositions = std::size_t{1} << 24;
-      const bool small = rays < kPositions;
-      if (small) {
-        shadows.keys.resize(rays);
-        for (std::size_t j = 0; j < rays; ++j) shadows.keys[j] = key(j) << 24 | j;
-        std::sort(shadows.keys.begin(), shadows.keys.end());
-      } else {
-        shadows.order.resize(rays);
-        for (std::size_t j = 0; j < rays; ++j) shadows.order[j] = {key(j), j};
-        std::sort(shadows.order.begin(), shadows.order.end());
-      }
-      const auto sorted = [&](std::size_t j) {
-        return small ? static_cast<std::size_t>(shadows.keys[j] & (kPositions - 1)) : shadows.order[j].second;
-      };
+      shadows.order.sort(rays, key);
       ShadowOrderChooser& chooser = orders.at(light_index, 1);
       for (std::size_t j = 0; j < rays; j += N) {
         const int n = static_cast<int>(std::min<std::size_t>(N, rays - j));
         RayLanes<N> group;
         for (int l = 0; l < n; ++l) {
-          const auto [q, i] = shadows.at[sorted(j + static_cast<std::size_t>(l))];
+          const auto [q, i] = shadows.at[shadows.order.at(j + static_cast<std::size_t>(l))];
           const RayLanes<N>& r = packets[q].shadow;
           group.set(l, glm::vec3(r.org[0][i], r.org[1][i], r.org[2][i]), r.t_min[i],
                     glm::vec3(r.dir[0][i], r.dir[1][i], r.dir[2][i]), r.t_max[i]);
@@ -793,7 +785,7 @@ void trace_batch(const FrameState& fs, Bounces& bounces, std::vector<BatchPacket
         const unsigned blocked = occluded_lanes<N>(fs, group, all, chooser);
         for (int l = 0; l < n; ++l) {
           if (!((blocked >> l) & 1u)) continue;
-          const auto [q, i] = shadows.at[sorted(j + static_cast<std::size_t>(l))];
+          const auto [q, i] = shadows.at[shadows.order.at(j + static_cast<std::size_t>(l))];
           packets[q].blocked |= 1u << i;
         }
       }
