@@ -695,6 +695,42 @@ void sort_bounces(Bounces& b) {
   queue.clear();
 }
 
+/// The pixels of the packet whose block starts at (bx, by) of a w x h tile: lane i's is (px[i],
+/// py[i]); returns the lanes inside the tile.
+template <int N>
+unsigned packet_pixels(int bx, int by, int w, int h, int (&px)[N], int (&py)[N]) {
+  constexpr int kBlockW = packet_block_width(N);
+  unsigned valid = 0;
+  for (int i = 0; i < N; ++i) {
+    px[i] = bx + i % kBlockW;
+    py[i] = by + i / kBlockW;
+    if (px[i] < w && py[i] < h) valid |= 1u << i;
+  }
+  return valid;
+}
+
+/// The camera rays of the `valid` lanes' pixels (tile pixel + (x0, y0)) at sample offset (sx, sy).
+template <int N>
+void camera_packet(const FrameState& fs, int x0, int y0, const int (&px)[N], const int (&py)[N], unsigned valid,
+                   double sx, double sy, RayLanes<N>& primary) {
+  for (int i = 0; i < N; ++i) {
+    if (!((valid >> i) & 1u)) continue;
+    const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
+    primary.set(i, r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity());
+  }
+}
+
+/// What trace_radiance does for primary lanes that miss, without the kd-tree (a packet that
+/// provably sees nothing).
+template <int N>
+void miss_packet(const FrameState& fs, unsigned valid, Lanes<N>& lanes, TileRayCounts& counts) {
+  for (int i = 0; i < N; ++i) {
+    if ((valid >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
+  }
+  counts.primary += static_cast<std::uint64_t>(std::popcount(valid));
+  counts.primary_skipped += static_cast<std::uint64_t>(std::popcount(valid));
+}
+
 /// A packet of a sorted batch of bounces (trace_batch) while its shadow rays are out.
 template <int N, unsigned F>
 struct BatchPacket {
@@ -833,19 +869,22 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
   auto& waiting = scratch.waiting;
   Bounces& bounces = scratch.bounces;
   if (spp > 1) sum.assign(pixels, glm::vec3(0.0f));
-  // A sample's colour: written out (one sample), or added to the pixel's sum.
-  const auto done = [&](std::size_t idx, const glm::vec3& color) {
-    if (spp > 1) {
-      sum[idx] = sum[idx] + color;
-      return;
-    }
-    const glm::vec3 c = glm::vec3(0.0f) + color;  // the sum of one sample
+  // Pixel idx (row-major in the tile) gets colour c, alpha 1.
+  const auto write = [&](std::size_t idx, const glm::vec3& c) {
     float* p = out.pixel(static_cast<int>(idx % static_cast<std::size_t>(w)),
                          static_cast<int>(idx / static_cast<std::size_t>(w)));
     p[0] = c.x;
     p[1] = c.y;
     p[2] = c.z;
     p[3] = 1.0f;
+  };
+  // A sample's colour: written out (one sample: the sum 0 + colour), or added to the pixel's sum.
+  const auto done = [&](std::size_t idx, const glm::vec3& color) {
+    if (spp > 1) {
+      sum[idx] = sum[idx] + color;
+    } else {
+      write(idx, glm::vec3(0.0f) + color);
+    }
   };
   for (int s = 0; s < spp; ++s) {
     double sx, sy;
@@ -856,12 +895,7 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
     for (int by = 0; by < h; by += kBlockH) {
       for (int bx = 0; bx < w; bx += kBlockW) {
         int px[N], py[N];
-        unsigned valid = 0;
-        for (int i = 0; i < N; ++i) {
-          px[i] = bx + i % kBlockW;
-          py[i] = by + i / kBlockW;
-          if (px[i] < w && py[i] < h) valid |= 1u << i;
-        }
+        const unsigned valid = packet_pixels<N>(bx, by, w, h, px, py);
         const bool skip =
             cull != nullptr && cull->misses(x0 + bx, y0 + by, x0 + bx + kBlockW, y0 + by + kBlockH);
         Lanes<N> lanes;
@@ -875,21 +909,12 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
         Aov aov[N];
         if (!skip) {
           RayLanes<N> primary;
-          for (int i = 0; i < N; ++i) {
-            if (!((valid >> i) & 1u)) continue;
-            const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
-            primary.set(i, r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity());
-          }
+          camera_packet<N>(fs, x0, y0, px, py, valid, sx, sy, primary);
           Aov* first = nullptr;
           if constexpr ((F & kAovs) != 0) first = s == 0 ? aov : nullptr;
           pending = trace_radiance<N, F>(fs, primary, valid, 0, lanes, first, counts, nullptr, orders, term, &bounces);
         } else {
-          // What trace_radiance does for lanes that miss, without the kd-tree.
-          for (int i = 0; i < N; ++i) {
-            if ((valid >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
-          }
-          counts.primary += static_cast<std::uint64_t>(std::popcount(valid));
-          counts.primary_skipped += static_cast<std::uint64_t>(std::popcount(valid));
+          miss_packet<N>(fs, valid, lanes, counts);
         }
         for (int i = 0; i < N; ++i) {
           if (!((valid >> i) & 1u)) continue;
@@ -918,15 +943,7 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
   }
   if (spp > 1) {
     const float inv_spp = 1.0f / static_cast<float>(spp);
-    for (std::size_t idx = 0; idx < pixels; ++idx) {
-      const glm::vec3 c = sum[idx] * inv_spp;
-      float* p = out.pixel(static_cast<int>(idx % static_cast<std::size_t>(w)),
-                           static_cast<int>(idx / static_cast<std::size_t>(w)));
-      p[0] = c.x;
-      p[1] = c.y;
-      p[2] = c.z;
-      p[3] = 1.0f;
-    }
+    for (std::size_t idx = 0; idx < pixels; ++idx) write(idx, sum[idx] * inv_spp);
   }
 }
 
@@ -955,12 +972,7 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
   for (int by = 0; by < h; by += kBlockH) {
     for (int bx = 0; bx < w; bx += kBlockW) {
       int px[N], py[N];
-      unsigned valid = 0;
-      for (int i = 0; i < N; ++i) {
-        px[i] = bx + i % kBlockW;
-        py[i] = by + i / kBlockW;
-        if (px[i] < w && py[i] < h) valid |= 1u << i;
-      }
+      const unsigned valid = packet_pixels<N>(bx, by, w, h, px, py);
       const bool skip = tile_misses || (cull != nullptr && cull->misses(x0 + bx, y0 + by, x0 + bx + kBlockW,
                                                                          y0 + by + kBlockH));
       glm::vec3 sum[N];
@@ -975,25 +987,14 @@ void render_tile_impl(const FrameState& fs, int x0, int y0, int w, int h, Image&
           lanes.color[i] = glm::vec3(0.0f);
         }
         RayLanes<N> primary;
-        if (!skip || marks != nullptr) {
-          for (int i = 0; i < N; ++i) {
-            if (!((valid >> i) & 1u)) continue;
-            const Ray r = fs.camera_rays.ray(x0 + px[i], y0 + py[i], sx, sy);
-            primary.set(i, r.origin, 0.0f, r.dir, std::numeric_limits<float>::infinity());
-          }
-        }
+        if (!skip || marks != nullptr) camera_packet<N>(fs, x0, y0, px, py, valid, sx, sy, primary);
         if (!skip) {
           Aov* first = nullptr;
           if constexpr ((F & kAovs) != 0) first = s == 0 ? aov : nullptr;
           trace_radiance<N, F>(fs, primary, valid, 0, lanes, first, counts, marks, orders);
         } else {
-          // What trace_radiance does for lanes that miss, without the kd-tree.
           if (marks != nullptr) mark_paths<N>(*marks, primary, valid, nullptr);
-          for (int i = 0; i < N; ++i) {
-            if ((valid >> i) & 1u) lanes.color[i] = lanes.color[i] + lanes.weight[i] * fs.background;
-          }
-          counts.primary += static_cast<std::uint64_t>(std::popcount(valid));
-          counts.primary_skipped += static_cast<std::uint64_t>(std::popcount(valid));
+          miss_packet<N>(fs, valid, lanes, counts);
         }
         for (int i = 0; i < N; ++i) sum[i] = sum[i] + lanes.color[i];
       }
