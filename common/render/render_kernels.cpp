@@ -12,7 +12,6 @@
 // primary rays all miss the geometry's bounds (FrameState::cull) get the background without
 // entering the kd-tree. Neither changes a bit of any pixel.
 #include <algorithm>
-#include <cstdlib>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -275,10 +274,10 @@ class KeySort {
 };
 
 /// Mirror bounces as render_tile_bounces traces them. A packet whose bounces fill at least half
-/// its lanes traces them at once, as one packet (they left neighbouring pixels' hits, so they
-/// mostly stay together). Fewer bounces, which left the packet's hits in scattered directions,
-/// wait in a queue for the bounces of the tile's other packets, and are traced later in full
-/// packets of similar rays (sort_bounces). Either way a lane's colour at each depth ("term":
+/// its lanes and head into at most two direction octants traces them at once, as one packet
+/// (they left neighbouring pixels' hits and mostly stay together). Other bounces (few, or
+/// scattered in direction) wait in a queue for the bounces of the tile's other packets, and are
+/// traced later in full packets of similar rays (sort_bounces). Either way a lane's colour at each depth ("term":
 /// 0 + weight * local, as trace_radiance leaves it) is kept in a chain per primary sample, and
 /// the sample's colour is summed from the deepest term back, term + colour below, as the
 /// recursion without a queue adds a bounce's colour to its parent's: the same operations in
