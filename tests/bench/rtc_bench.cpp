@@ -881,11 +881,13 @@ int run(int argc, char** argv) {
       out["skip_empty"] = ro.skip_empty;
       if (!json) {
         std::printf("  full    rtc Whitted frame: %.1f ms, %.2f M rays/s (%llu primary, %llu of them skipped as empty "
-                    "space, %llu shadow, %llu reflection, %llu of them regrouped; depth %d); features: %s; kernel: %s\n",
+                    "space, %llu shadow, %llu reflection, %llu of them regrouped; depth %d); features: %s; "
+                    "kernel: %s\n",
                     ms, static_cast<double>(counts.total()) / ms / 1e3,
                     static_cast<unsigned long long>(counts.primary), static_cast<unsigned long long>(counts.primary_skipped),
                     static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
-                    static_cast<unsigned long long>(counts.reflection_regrouped), fs->settings.max_depth, rtc::describe(fs->features).c_str(), out["kernel"].get<std::string>().c_str());
+                    static_cast<unsigned long long>(counts.reflection_regrouped), fs->settings.max_depth,
+                    rtc::describe(fs->features).c_str(), out["kernel"].get<std::string>().c_str());
       }
       if (compare) {
         std::uint64_t differ = 0;
