@@ -855,7 +855,9 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
   const bool aovs = !out.depth.empty();
   const std::size_t pixels = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
   ShadowOrders orders(fs.lights.size(), options);
-  // Kept per thread from tile to tile.
+  // Kept per thread from tile to tile (nothing in a tile's tracing runs another tile on this
+  // thread), but for a very large tile's, which are freed after it.
+  constexpr std::size_t kKeepPixels = std::size_t{256} * 256;
   struct Scratch {
     std::vector<glm::vec3> sum;  // spp > 1: the samples' colours so far
     std::vector<std::pair<std::uint32_t, std::uint32_t>> waiting;  // (pixel, term) with a bounce queued
@@ -944,6 +946,7 @@ void render_tile_bounces(const FrameState& fs, int x0, int y0, int w, int h, Ima
     const float inv_spp = 1.0f / static_cast<float>(spp);
     for (std::size_t idx = 0; idx < pixels; ++idx) write(idx, sum[idx] * inv_spp);
   }
+  if (pixels > kKeepPixels) scratch = Scratch{};
 }
 
 // Packets of 2x2 pixels (N = 4), 4x2 (N = 8), 4x4 (N = 16); single pixels when N = 1. `cull`
