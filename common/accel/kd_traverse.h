@@ -755,6 +755,15 @@ inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPa
   });
 }
 
+/// The lanes of `lanes` whose rays point into the same octant as lane `first`'s: bit i of `sx`,
+/// `sy`, `sz` is set where lane i runs towards -x, -y, -z.
+inline unsigned octant_group(unsigned lanes, unsigned sx, unsigned sy, unsigned sz, int first) {
+  const unsigned mx = ((sx >> first) & 1u) ? sx : ~sx;
+  const unsigned my = ((sy >> first) & 1u) ? sy : ~sy;
+  const unsigned mz = ((sz >> first) & 1u) ? sz : ~sz;
+  return lanes & mx & my & mz;
+}
+
 /// Closest hit (kOcclusion = false) or any hit (true) for the active lanes. The traversal
 /// needs one direction sign per axis, so a packet whose active lanes point into different
 /// octants (reflections off curved surfaces, shadow rays from scattered hits) is regrouped:
@@ -773,11 +782,7 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
     unsigned left = bits(active);
     while (left != 0) {  // once for a coherent packet
       const int first = __builtin_ctz(left);
-      // Lanes in the same octant as the first remaining one.
-      const unsigned mx = ((sx >> first) & 1u) ? sx : ~sx;
-      const unsigned my = ((sy >> first) & 1u) ? sy : ~sy;
-      const unsigned mz = ((sz >> first) & 1u) ? sz : ~sz;
-      const unsigned group = left & mx & my & mz;
+      const unsigned group = octant_group(left, sx, sy, sz, first);  // the first remaining lane's
       left &= ~group;
       if ((group & (group - 1)) == 0) {
         trace_lane<N, kOcclusion, Test, kFarFirst>(tree, ray, first, hit, occluded);

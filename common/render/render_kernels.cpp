@@ -490,16 +490,12 @@ unsigned finish_hits(const FrameState& fs, const HitShading<N, F>& sh, int depth
     }
     if (bounce == 0) return 0;
     if (bounces != nullptr) {
-      unsigned signs[3];
-      for (int a = 0; a < 3; ++a) signs[a] = bits(sign_bit(vfloat<N>::load(refl.dir[a]))) & bounce;
+      const unsigned sx = bits(sign_bit(vfloat<N>::load(refl.dir[0])));
+      const unsigned sy = bits(sign_bit(vfloat<N>::load(refl.dir[1])));
+      const unsigned sz = bits(sign_bit(vfloat<N>::load(refl.dir[2])));
       int octants = 0;
-      for (unsigned left = bounce; left != 0;) {
-        const int f = __builtin_ctz(left);
-        const unsigned mx = ((signs[0] >> f) & 1u) ? signs[0] : ~signs[0];
-        const unsigned my = ((signs[1] >> f) & 1u) ? signs[1] : ~signs[1];
-        const unsigned mz = ((signs[2] >> f) & 1u) ? signs[2] : ~signs[2];
-        left &= ~(mx & my & mz);
-        ++octants;
+      for (unsigned left = bounce; left != 0; ++octants) {
+        left &= ~octant_group(left, sx, sy, sz, __builtin_ctz(left));
       }
       if (octants > 2 || 2 * std::popcount(bounce) < N) {
         for (int i = 0; i < N; ++i) {
