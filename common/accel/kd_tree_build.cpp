@@ -7,6 +7,7 @@
 // 2008, section 4.3), without further clipping. Parallel over subtrees (TBB).
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -96,16 +97,20 @@ struct BuildContext {
   bool avx512 = false;
   bool avx2 = false;
   float leaf_box_saving = 0.0f;  // KdBuildOptions::leaf_box_saving (0: no LeafBox)
-  // Blocks of more references than this build large children as blocks of their own, side by
-  // side (BlockBuilder::fork): a quarter of the triangles, so a scene of a few blocks (one, if
-  // it is small) does not leave threads idle while one builds its last block. Smaller blocks
-  // have other blocks beside them; there a first form of the fork (both children on fresh
-  // copies of the whole block's bounds) measured slower (spd-gears, radiance-office 1.1x the
-  // time at 2 threads), and with one thread it cost 1.05-1.5x. The kept form with no size
-  // limit at 2 threads: radiance-office 0.99x, spd-gears 1.04x, 2CylinderEngine 1.07x,
-  // radiance-cabin 1.03x (build_experiments.md, session 31). The tree and its statistics are
-  // the same either way.
-  std::size_t fork_above = 0;
+  // Blocks of more references than this (a quarter of the triangles, at 2 threads or more)
+  // make their event lists and sweep their large nodes' three axes side by side
+  // (kSideBySideSetUp): a small scene is one block, and until its first fork the other
+  // threads have nothing to do.
+  std::size_t side_by_side_above = 0;
+  std::size_t threads = 1;  // build_threads()
+  // The build's work in hand: top nodes and blocks being built or waiting for a thread, and
+  // forked children; a builder waiting for its fork's child does not count. Fewer than
+  // `threads` means a thread has nothing to do, and then any block's next large enough split
+  // forks (BlockBuilder::fork, idle()).
+  mutable std::atomic<std::size_t> work{0};
+
+  // Whether some thread has no work now.
+  [[nodiscard]] bool idle() const { return threads > 1 && work.load(std::memory_order_relaxed) < threads; }
 };
 
 // The threads a build may use (KdBuildOptions::threads or TBB's own limit).
@@ -1776,13 +1781,13 @@ class MaskBuilder {
   Block& out_;
 };
 
-// A forking block (BlockBuilder::forks_: one that is most of a small scene) of at least this
+// A block that is most of a small scene (BlockBuilder::side_by_side_) of at least this
 // many references clips its triangles and makes its three event lists side by side, and its
 // nodes of at least this many sweep their three axes side by side: until its first fork the
 // other threads have nothing to do.
 constexpr std::size_t kSideBySideSetUp = 1024;
 
-// A sort buffer per thread, for the event lists a forking block makes side by side.
+// A sort buffer per thread, for the event lists such a block makes side by side.
 std::vector<Event>& tl_sort_buffer() {
   thread_local std::vector<Event> buffer;
   return buffer;
@@ -1795,7 +1800,7 @@ std::vector<Event>& tl_sort_buffer() {
 class BlockBuilder {
  public:
   BlockBuilder(const BuildContext& ctx, Scratch& scratch, std::span<const std::uint32_t> tris, Block& out)
-      : ctx_(ctx), s_(scratch), tris_(tris), out_(out), forks_(tris.size() > ctx.fork_above) {}
+      : ctx_(ctx), s_(scratch), tris_(tris), out_(out), side_by_side_(tris.size() > ctx.side_by_side_above) {}
 
   void run(const Aabb& box, int depth) {
     const std::size_t n = tris_.size();
@@ -1818,7 +1823,7 @@ class BlockBuilder {
       sort_events(ev, m, sort_buffer, ctx_);
       len[axis] = m;
     };
-    if (forks_ && n >= kSideBySideSetUp) {
+    if (side_by_side_ && n >= kSideBySideSetUp) {
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 512),
                         [&](const tbb::blocked_range<std::size_t>& r) { clip_range(r.begin(), r.end()); });
       tbb::parallel_invoke([&] { make_list(0, s_.sort_buffer); }, [&] { make_list(1, tl_sort_buffer()); },
@@ -1879,7 +1884,7 @@ class BlockBuilder {
         const auto sweep = [&](int axis) {
           c[axis] = best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
         };
-        if (forks_ && count >= kSideBySideSetUp) {
+        if (side_by_side_ && count >= kSideBySideSetUp) {
           tbb::parallel_invoke([&] { sweep(0); }, [&] { sweep(1); }, [&] { sweep(2); });
         } else {
           for (int axis = 0; axis < 3; ++axis) sweep(axis);
@@ -2072,7 +2077,9 @@ class BlockBuilder {
     }
     const std::size_t restore_end = s_.restore.size();
     std::optional<ScratchPool::Lease> spare;
-    if (forks_ && left_count >= kForkAbove && right_count >= kForkAbove) spare.emplace(ScratchPool::instance(), true);
+    if (left_count >= kForkAbove && right_count >= kForkAbove && ctx_.idle()) {
+      spare.emplace(ScratchPool::instance(), true);
+    }
     if (spare && spare->has()) {
       fork(first, left_off, left_len, left_count, left_box, right_off, right_len, right_count, right_box, depth + 1,
            restore, restore_end, **spare);
@@ -2086,11 +2093,15 @@ class BlockBuilder {
     s_.arena.release(mark);
   }
 
-  // Both children of a split, where each holds at least this many references and a set of
-  // buffers is spare, are built side by side, the right one as a block of its own (a small
-  // scene is one block, and a block was one thread's work): the same subtrees, nodes,
-  // references and SAH cost terms in the same places and order as one builder makes them.
-  static constexpr std::size_t kForkAbove = 512;
+  // Both children of a split, where each holds at least this many references, some thread is
+  // idle (BuildContext::idle) and a set of buffers is spare, are built side by side, the right
+  // one as a block of its own: the same subtrees, nodes, references and SAH cost terms in the
+  // same places and order as one builder makes them. Up to session 33 only blocks of more than
+  // a quarter of the scene forked, at children of 512 and whenever a set was spare; forking only
+  // for an idle thread, in any block, at 256 took 0.94x the time on bunny and 0.96x on
+  // radiance-office at 2 threads (the last block no longer builds alone), the other views
+  // within 2%; at 128 Wuson took 1.10x (build_experiments.md, session 34).
+  static constexpr std::size_t kForkAbove = 256;
 
   // The children (left, right) at nodes `first` and `first + 1`, their lists in this builder's
   // arena, the straddlers' bounds in the left child in s_.bounds and in the right one in
@@ -2121,8 +2132,10 @@ class BlockBuilder {
     for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
 
     tbb::task_group right;
+    ctx_.work.fetch_add(1, std::memory_order_relaxed);
     right.run([&] {
       BlockBuilder(ctx_, child, tris_, child.part).run_prepared(off, right_len, right_count, right_box, depth);
+      ctx_.work.fetch_sub(1, std::memory_order_relaxed);
     });
     try {
       node(first, left_off, left_len, left_count, left_box, depth);
@@ -2131,7 +2144,9 @@ class BlockBuilder {
       right.wait();
       throw;
     }
+    ctx_.work.fetch_sub(1, std::memory_order_relaxed);  // waiting, or building the child itself
     right.wait();
+    ctx_.work.fetch_add(1, std::memory_order_relaxed);
     // A build whose other task threw is cancelled, and the child may not have run: that build
     // ends in the other task's exception, not in a splice of nothing.
     if (child.part.nodes.empty()) throw Error("kd-tree build cancelled");
@@ -2257,7 +2272,7 @@ class BlockBuilder {
   Scratch& s_;
   std::span<const std::uint32_t> tris_;
   Block& out_;
-  const bool forks_;  // large children built side by side (BuildContext::fork_above)
+  const bool side_by_side_;  // set-up and large sweeps side by side (BuildContext::side_by_side_above)
 };
 
 // A node above the exact blocks: an inner node with a binned plane, or a block.
@@ -2274,6 +2289,8 @@ class TopBuilder {
  public:
   explicit TopBuilder(const BuildContext& ctx) : ctx_(ctx) {}
 
+  // The caller counted this node in ctx_.work; the count is given back once its block is
+  // built, or handed to its children.
   std::unique_ptr<TopNode> build(std::vector<std::uint32_t> tris, const Aabb& box, int depth) {
     auto node = std::make_unique<TopNode>();
     const std::size_t n = tris.size();
@@ -2285,6 +2302,7 @@ class TopBuilder {
     if (split.axis < 0 || !(split.cost < ctx_.options.intersection_cost * static_cast<float>(n))) {
       const ScratchPool::Lease scratch(ScratchPool::instance());
       BlockBuilder(ctx_, *scratch, tris, node->block).run(box, depth);
+      ctx_.work.fetch_sub(1, std::memory_order_relaxed);
       node->nodes_below = node->block.nodes.size() - 1;
       node->refs = node->block.refs.size();
       return node;
@@ -2298,6 +2316,7 @@ class TopBuilder {
     Aabb left_box = box, right_box = box;
     left_box.hi[split.axis] = split.pos;
     right_box.lo[split.axis] = split.pos;
+    ctx_.work.fetch_add(1, std::memory_order_relaxed);  // two children in this node's place
     if (n >= kParallelSubtree) {
       tbb::parallel_invoke([&] { node->child[0] = build(std::move(left), left_box, depth + 1); },
                            [&] { node->child[1] = build(std::move(right), right_box, depth + 1); });
@@ -2890,7 +2909,9 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const auto exact_below = static_cast<std::size_t>(std::max(options.exact_below, 1));
   BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below, sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
-                   std::max(options.leaf_box_saving, 0.0f), build_threads() > 1 ? count / 4 : SIZE_MAX};
+                   std::max(options.leaf_box_saving, 0.0f), build_threads() > 1 ? count / 4 : SIZE_MAX,
+                   build_threads()};
+  ctx.work.store(1, std::memory_order_relaxed);  // the root
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;

@@ -694,13 +694,15 @@ TEST(KdTree, PageCacheKeepsWithinItsLimits) {
   release_page_cache();
 }
 
-// A small scene is one block of the exact stage; with more than one thread its large nodes'
-// children are built as tasks of their own (BlockBuilder::fork) and spliced back in, and the
-// block's three event lists and its large nodes' three sweeps are made side by side
-// (kSideBySideSetUp: the two one-block soups here are above it). The tree, its records and every
-// statistic (the SAH cost's float sum too) are those one thread makes.
+// With more than one thread, a block's large nodes' children are built as tasks of their own
+// (BlockBuilder::fork) and spliced back in wherever a thread has nothing else to do: from a
+// small scene's root (one block of the exact stage), and in a larger scene's last blocks. A
+// small scene's block also makes its three event lists and its large nodes' three sweeps side
+// by side (kSideBySideSetUp: the two one-block soups here are above it). The tree, its records
+// and every statistic (the SAH cost's float sum too) are those one thread makes.
 TEST(KdTree, BlocksForkedAcrossThreadsBuildTheOneThreadTree) {
-  // One block each, except the last: a few blocks (a fork there depends on their sizes).
+  // One block each, except the last: a few blocks (whether one forks depends on when the
+  // others end).
   const Soup soups[] = {random_soup(21, 3500, 0.05f), planar_piles(22, 3000), random_soup(23, 12000, 0.01f)};
   for (const Soup& s : soups) {
     const bool one_block = s.triangles.size() <= 4096;
