@@ -17,6 +17,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <numeric>
 #include <optional>
 #include <sstream>
 
@@ -2333,10 +2334,15 @@ class TopBuilder {
 
  private:
   static constexpr int kMaxBins = 256;
-  // Nodes this big are binned and partitioned in chunks of kChunk references in parallel;
-  // per-chunk integer counts summed in chunk order keep the result independent of threads.
-  static constexpr std::size_t kParallelNode = 65536;
+  // Nodes this big are binned and partitioned in chunks of kChunk references in parallel, and
+  // those from kParallelNode up in chunks of kSmallChunk (the top nodes of a scene of some
+  // 10,000 triangles: radiance-office's root and its child, about 0.1 ms each, ran on one thread
+  // while the other waited); per-chunk integer counts summed in chunk order keep the result
+  // independent of threads and chunks.
+  static constexpr std::size_t kLargeNode = 65536;
   static constexpr std::size_t kChunk = 16384;
+  static constexpr std::size_t kParallelNode = 8192;
+  static constexpr std::size_t kSmallChunk = 4096;
   // Subtrees this big are built as tasks of their own.
   // (Only the top nodes above KdBuildOptions::exact_below reach this test, so with the default
   // 4096 every one of them is a task; lower values of exact_below make tasks of their children
@@ -2348,7 +2354,10 @@ class TopBuilder {
     std::uint32_t end[3][kMaxBins];    // ... whose upper bound is in the bin
   };
 
-  static std::size_t chunk_count(std::size_t n) { return n >= kParallelNode ? (n + kChunk - 1) / kChunk : 1; }
+  static std::size_t chunk_count(std::size_t n) {
+    if (n >= kLargeNode) return (n + kChunk - 1) / kChunk;
+    return n >= kParallelNode ? (n + kSmallChunk - 1) / kSmallChunk : 1;
+  }
 
   // Binned SAH (Shevtsov et al. 2007, section 3.1): `bins` equal bins per axis; a reference
   // counts left of every boundary above its lower bound's bin and right of every boundary at
@@ -2603,6 +2612,10 @@ LeafBox make_leaf_box(const Aabb& box, float pad) {
 // kLeafBoxRef and its LeafBox record (`records`, the tree's leaf records; the triangles'
 // records are copied in afterwards).
 struct Placer {
+  // Subtrees and blocks of more nodes (and, in a block, references) than this are placed in
+  // parallel; radiance-office's 15 K nodes took 0.15 ms on one thread at 65,536.
+  static constexpr std::size_t kInParallel = 8192;
+
   KdNode* nodes;
   std::uint32_t* refs;
   TriRecord* records;
@@ -2617,15 +2630,32 @@ struct Placer {
                              local[n.left() + 1].is_empty_leaf());
       };
       nodes[index] = relocate(local[0]);
-      for (std::size_t i = 1; i < local.size(); ++i) nodes[node_base + i - 1] = relocate(local[i]);
-      for (std::size_t i = 0; i < t.block.refs.size(); ++i) {
-        const std::uint32_t r = t.block.refs[i];
-        if ((r & Block::kBoxSlot) == 0) {
-          refs[ref_base + i] = r;
-        } else {
-          refs[ref_base + i] = kLeafBoxRef;
-          records[ref_base + i].box = make_leaf_box(t.block.boxes[r & ~Block::kBoxSlot], box_pad);
+      const auto place_nodes = [&](std::size_t from, std::size_t to) {
+        for (std::size_t i = from; i < to; ++i) nodes[node_base + i - 1] = relocate(local[i]);
+      };
+      const auto place_refs = [&](std::size_t from, std::size_t to) {
+        for (std::size_t i = from; i < to; ++i) {
+          const std::uint32_t r = t.block.refs[i];
+          if ((r & Block::kBoxSlot) == 0) {
+            refs[ref_base + i] = r;
+          } else {
+            refs[ref_base + i] = kLeafBoxRef;
+            records[ref_base + i].box = make_leaf_box(t.block.boxes[r & ~Block::kBoxSlot], box_pad);
+          }
         }
+      };
+      if (local.size() + t.block.refs.size() > kInParallel) {  // a small scene's one block
+        const auto range = [](std::size_t from, std::size_t to) {
+          return tbb::blocked_range<std::size_t>(from, to, kInParallel / 2);
+        };
+        tbb::parallel_invoke(
+            [&] { tbb::parallel_for(range(1, local.size()), [&](const auto& r) { place_nodes(r.begin(), r.end()); }); },
+            [&] {
+              tbb::parallel_for(range(0, t.block.refs.size()), [&](const auto& r) { place_refs(r.begin(), r.end()); });
+            });
+      } else {
+        place_nodes(1, local.size());
+        place_refs(0, t.block.refs.size());
       }
       return;
     }
@@ -2635,7 +2665,7 @@ struct Placer {
     nodes[index] = KdNode::inner(node_base, t.axis, t.split, empty_leaf(l), empty_leaf(r));
     auto place_left = [&] { place(l, node_base, node_base + 2, ref_base); };
     auto place_right = [&] { place(r, node_base + 1, node_base + 2 + l.nodes_below, ref_base + l.refs); };
-    if (t.nodes_below > 65536) {
+    if (t.nodes_below > kInParallel) {
       tbb::parallel_invoke(place_left, place_right);
     } else {
       place_left();
@@ -2858,8 +2888,17 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   // leaf order (leaf_records_), made once the leaves are known.
   RawArray<TriRecord> records(triangles.size());
   RawArray<Aabb> tri_box(triangles.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 1024), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+  // Chunks of kRecordChunk triangles, each with the box of its triangles and their count
+  // (degenerate ones left out), merged in chunk order below: the root box a loop over the
+  // triangles in order makes (the min and max keep the first of equal values), with no serial
+  // pass over them (spd-mount-s10: 2.1 M triangles).
+  constexpr std::size_t kRecordChunk = 1024;
+  const std::size_t record_chunks = (triangles.size() + kRecordChunk - 1) / kRecordChunk;
+  std::vector<Aabb> chunk_box(record_chunks);
+  std::vector<std::size_t> chunk_valid(record_chunks, 0);
+  tbb::parallel_for(std::size_t{0}, record_chunks, [&](std::size_t chunk) {
+    const std::size_t end = std::min(triangles.size(), (chunk + 1) * kRecordChunk);
+    for (std::size_t i = chunk * kRecordChunk; i != end; ++i) {
       const glm::uvec3 t = triangles[i];
       RTC_CHECK(t.x < positions.size() && t.y < positions.size() && t.z < positions.size(),
                 "kd-tree: triangle index out of range (loaders validate indices)");
@@ -2882,18 +2921,28 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
         box.extend(b);
         box.extend(c);
       }
+      if (!box.empty()) {  // as the tree's references are chosen below
+        chunk_box[chunk].extend(box);
+        ++chunk_valid[chunk];
+      }
     }
   });
 
   Aabb root;
-  std::vector<std::uint32_t> tris;
-  tris.reserve(triangles.size());
-  for (std::size_t i = 0; i < triangles.size(); ++i) {
-    if (tri_box[i].empty()) continue;
-    root.extend(tri_box[i]);
-    tris.push_back(static_cast<std::uint32_t>(i));
+  std::size_t count = 0;
+  for (std::size_t c = 0; c < record_chunks; ++c) {
+    root.extend(chunk_box[c]);
+    count += chunk_valid[c];
   }
-  const std::size_t count = tris.size();
+  std::vector<std::uint32_t> tris(count);
+  if (count == triangles.size()) {
+    std::iota(tris.begin(), tris.end(), std::uint32_t{0});
+  } else {
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < triangles.size(); ++i) {
+      if (!tri_box[i].empty()) tris[k++] = static_cast<std::uint32_t>(i);
+    }
+  }
   tree.stats_.degenerate = triangles.size() - count;
   if (count == 0) {
     tree.stats_.build_ms = timer.elapsed_ms();
@@ -2935,7 +2984,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 16384), [&](const auto& range) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const std::uint32_t r = tree.prim_refs_[i];
       if (r != kLeafBoxRef) tree.leaf_records_[i] = records[r];  // the placer wrote the boxes
