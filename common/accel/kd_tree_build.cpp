@@ -2644,7 +2644,7 @@ struct Placer {
           }
         }
       };
-      if (local.size() + t.block.refs.size() > kInParallel) {  // a small scene's one block
+      if (local.size() + t.block.refs.size() > kInParallel) {  // a small scene's one block, or a large block
         const auto range = [](std::size_t from, std::size_t to) {
           return tbb::blocked_range<std::size_t>(from, to, kInParallel / 2);
         };

@@ -942,6 +942,69 @@ TEST(KdTree, DegenerateTrianglesAreSkipped) {
   }
 }
 
+// The records are made in chunks of 1,024 triangles, each with its own box and count of
+// triangles kept, merged in order: with degenerate triangles scattered over many chunks (and a
+// whole chunk of them) the tree references every other triangle and no degenerate one, its
+// bounds hold exactly the kept triangles, and it is the tree of the kept triangles alone.
+TEST(KdTree, DegenerateTrianglesAcrossRecordChunksAreSkipped) {
+  Soup s = random_soup(41, 6000, 0.05f);
+  // The scene's extremes in the first and the last chunk, and a degenerate triangle beyond them.
+  s.positions[3 * 1] = {-3.0f, -3.0f, -3.0f};
+  s.positions[3 * 5999 + 2] = {3.0f, 3.0f, 3.0f};
+  s.positions[3 * 10] = {9.0f, 9.0f, 9.0f};  // triangle 10 is degenerate below (10 % 7 == 3)
+  std::vector<bool> degenerate(s.triangles.size(), false);
+  for (std::size_t i = 0; i < s.triangles.size(); ++i) {
+    if (i % 7 == 3 || (i >= 2048 && i < 3072)) {  // chunk 2 wholly
+      s.triangles[i].z = s.triangles[i].x;
+      degenerate[i] = true;
+    }
+  }
+  Soup kept;
+  kept.positions = s.positions;
+  std::vector<std::uint32_t> kept_ids;
+  Aabb expected_box;
+  for (std::size_t i = 0; i < s.triangles.size(); ++i) {
+    if (degenerate[i]) continue;
+    kept.triangles.push_back(s.triangles[i]);
+    kept_ids.push_back(static_cast<std::uint32_t>(i));
+    for (int v = 0; v < 3; ++v) expected_box.extend(s.positions[s.triangles[i][v]]);
+  }
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(testing::Message() << threads << " threads");
+    KdBuildOptions options;
+    options.threads = threads;
+    const KdTree tree = KdTree::build(s.positions, s.triangles, options);
+    EXPECT_EQ(tree.stats().degenerate, s.triangles.size() - kept.triangles.size());
+    std::vector<bool> seen(s.triangles.size(), false);
+    for (const std::uint32_t r : tree.prim_refs()) {
+      if (r == kLeafBoxRef) continue;
+      ASSERT_LT(r, s.triangles.size());
+      EXPECT_FALSE(degenerate[r]) << "triangle " << r;
+      seen[r] = true;
+    }
+    for (std::size_t i = 0; i < s.triangles.size(); ++i) EXPECT_EQ(seen[i], !degenerate[i]) << "triangle " << i;
+    EXPECT_EQ(expected_box.lo, glm::vec3(-3.0f));
+    EXPECT_EQ(expected_box.hi, glm::vec3(3.0f));
+    EXPECT_TRUE(glm::all(glm::lessThanEqual(tree.bounds().lo, expected_box.lo)));
+    EXPECT_TRUE(glm::all(glm::greaterThanEqual(tree.bounds().hi, expected_box.hi)));
+    EXPECT_TRUE(glm::all(glm::lessThan(tree.bounds().hi, glm::vec3(3.01f))));  // not the degenerate one
+    // The same tree as one over the kept triangles only, given their ids.
+    const KdTree alone = KdTree::build(kept.positions, kept.triangles, options, kept_ids);
+    ASSERT_EQ(tree.nodes().size(), alone.nodes().size());
+    for (std::size_t i = 0; i < tree.nodes().size(); ++i) {
+      ASSERT_EQ(tree.nodes()[i].bits, alone.nodes()[i].bits) << "node " << i;
+      ASSERT_EQ(tree.nodes()[i].count, alone.nodes()[i].count) << "node " << i;
+    }
+    EXPECT_EQ(tree.bounds().lo, alone.bounds().lo);
+    EXPECT_EQ(tree.bounds().hi, alone.bounds().hi);
+    EXPECT_EQ(tree.stats().sah_cost, alone.stats().sah_cost);
+    ASSERT_EQ(tree.leaf_records().size(), alone.leaf_records().size());
+    for (std::size_t i = 0; i < tree.leaf_records().size(); ++i) {
+      ASSERT_EQ(std::memcmp(&tree.leaf_records()[i], &alone.leaf_records()[i], sizeof(TriRecord)), 0) << i;
+    }
+  }
+}
+
 TEST(KdTree, WatertightRecordsHoldTheVerticesAndTheSameTree) {
   const Soup s = sphere_and_grid(16);
   const KdTree wald = KdTree::build(s.positions, s.triangles);
