@@ -2956,10 +2956,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
   const auto exact_below = static_cast<std::size_t>(std::max(options.exact_below, 1));
+  const std::size_t threads = build_threads();
   BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below, sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
-                   std::max(options.leaf_box_saving, 0.0f), build_threads() > 1 ? count / 4 : SIZE_MAX,
-                   build_threads()};
+                   std::max(options.leaf_box_saving, 0.0f), threads > 1 ? count / 4 : SIZE_MAX, threads};
   ctx.work.store(1, std::memory_order_relaxed);  // the root
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
