@@ -96,7 +96,10 @@ def main(path):
     # The command that regenerates this file: the results' name is the JSON lines' file name.
     name = os.path.splitext(os.path.basename(path))[0]
     command = "tests/bench/run_shared_scenes.sh" + ("" if name == "shared_scenes" and runs == 3 else f" ../shared/scenes 5 {name} {runs}")
-    print(f"Regenerate with `{command}` (one command; 2-core AMD EPYC with {vector}, Debian 12, "
+    # The CPU as the run recorded it (rtc-bench's "cpu"; runs before 2026-11-29 did not, and were
+    # all taken on the 2-core AMD EPYC VM).
+    cpu = any_row.get("cpu", "AMD EPYC")
+    print(f"Regenerate with `{command}` (one command; 2-core {cpu} with {vector}, Debian 12, "
           f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
           f"({any_row['reps']} here), then over {runs} run{'s' if runs > 1 else ''} of the whole sweep "
           "(the ratios: medians of each run's ratios, with their range over the runs in brackets in the summary). "
