@@ -585,9 +585,11 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   // planes' distances computed, before its decision, so that the chain node -> distance ->
   // decision -> child's load -> distance, which every step waited on (and a mispredicted
   // decision with it), is one load and one distance shorter; the same operations on the same
-  // values, so the same bits. Single rays 1.05-1.12x; packets, whose step is one decision over
-  // 16 lanes, measured 0.87-1.06x with it, so they load each node after its parent's decision
-  // (trace_experiments.md, session 35).
+  // values, so the same bits. Single rays 1.03-1.09x over nine views. Occlusion packets load
+  // the children ahead but compute the chosen one's distances after the decision (shadow
+  // packets 1.01-1.03x on five of six views, radiance-cabin 0.996); closest-hit packets load
+  // each node after its parent's decision: the forms that looked ahead measured 0.87-1.02x
+  // there (trace_experiments.md, session 35).
   [[maybe_unused]] const PacketVec3<N>& org = ray.org;
   const auto plane_t = [&](const KdNode& n) {
     if constexpr (N == 1) {
@@ -602,14 +604,17 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       return (vfloat<N>(n.split) - ray.org[a]) * inv_dir[a];
     }
   };
-  [[maybe_unused]] KdNode ahead = nodes[index];      // N = 1: the node visited next
-  [[maybe_unused]] vfloat<N> ahead_t = plane_t(ahead);  // ... and its plane's distances
+  constexpr bool kLoadAhead = N == 1 || kOcclusion;
+  [[maybe_unused]] KdNode ahead = nodes[index];         // kLoadAhead: the node visited next
+  [[maybe_unused]] vfloat<N> ahead_t = plane_t(ahead);  // N = 1: its plane's distances
   for (;;) {
     KdNode node;
     vfloat<N> t_split;
     if constexpr (N == 1) {
       node = ahead;
       t_split = ahead_t;
+    } else if constexpr (kLoadAhead) {
+      node = ahead;
     } else {
       node = nodes[index];
     }
@@ -622,19 +627,19 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const std::uint32_t far_child = node.left() + (sign ^ 1u);
       [[maybe_unused]] KdNode child0, child1;
       [[maybe_unused]] float t0 = 0.0f, t1 = 0.0f;
-      if constexpr (N == 1) {
+      if constexpr (kLoadAhead) {
         child0 = nodes[node.left()];
         child1 = nodes[node.left() + 1];
+      }
+      if constexpr (N == 1) {
         t0 = plane_t(child0).v;
         t1 = plane_t(child1).v;
       }
       // Child c (0 or 1), node `child`, is visited next.
       const auto enter = [&](std::uint32_t child, std::uint32_t c) {
         index = child;
-        if constexpr (N == 1) {
-          ahead = c != 0 ? child1 : child0;
-          ahead_t = vfloat<N>(c != 0 ? t1 : t0);
-        }
+        if constexpr (kLoadAhead) ahead = c != 0 ? child1 : child0;
+        if constexpr (N == 1) ahead_t = vfloat<N>(c != 0 ? t1 : t0);
       };
       const vfloat<N> near_end = min(t_split, far);     // NaN: far
       const vfloat<N> far_start = max(t_split, near);   // NaN: near
@@ -751,10 +756,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       if (lanes != 0) {
         active = vbool<N>::from_bits(lanes);
         index = e.node;
-        if constexpr (N == 1) {
-          ahead = nodes[index];
-          ahead_t = plane_t(ahead);
-        }
+        if constexpr (kLoadAhead) ahead = nodes[index];
+        if constexpr (N == 1) ahead_t = plane_t(ahead);
         near = vfloat<N>::load(e.near);
         far = vfloat<N>::load(e.far);
         break;
