@@ -590,15 +590,19 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   // packets 1.01-1.03x on five of six views, radiance-cabin 0.996); closest-hit packets load
   // each node after its parent's decision: the forms that looked ahead measured 0.87-1.02x
   // there (trace_experiments.md, session 35).
-  [[maybe_unused]] const PacketVec3<N>& org = ray.org;
+  // N = 1: the origin and reciprocals by axis, index 3 (a leaf's low bits) reading zeros: a
+  // leaf's value is never used, so a child's is computed without a branch on its kind.
+  [[maybe_unused]] float org4[4] = {}, inv4[4] = {};
+  if constexpr (N == 1) {
+    for (int a = 0; a < 3; ++a) {
+      org4[a] = ray.org[a].v;
+      inv4[a] = inv_dir[a].v;
+    }
+  }
   const auto plane_t = [&](const KdNode& n) {
     if constexpr (N == 1) {
-      // Index 3 (a leaf's low bits) reads zeros: a leaf's value is never used, so a child's is
-      // computed without a branch on its kind.
       const int a = static_cast<int>(n.bits & 3u);
-      const float o[4] = {org[0].v, org[1].v, org[2].v, 0.0f};
-      const float inv[4] = {inv_dir[0].v, inv_dir[1].v, inv_dir[2].v, 0.0f};
-      return vfloat<N>((n.split - o[a]) * inv[a]);
+      return vfloat<N>((n.split - org4[a]) * inv4[a]);
     } else {
       const int a = n.axis();
       return (vfloat<N>(n.split) - ray.org[a]) * inv_dir[a];
@@ -635,7 +639,8 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         t0 = plane_t(child0).v;
         t1 = plane_t(child1).v;
       }
-      // Child c (0 or 1), node `child`, is visited next.
+      // Child c (0 or 1), node `child` (= node.left() + c, passed as computed above: deriving it
+      // here changed the closest-hit packets' compiled walk), is visited next.
       const auto enter = [&](std::uint32_t child, std::uint32_t c) {
         index = child;
         if constexpr (kLoadAhead) ahead = c != 0 ? child1 : child0;

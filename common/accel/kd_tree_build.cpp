@@ -1326,16 +1326,15 @@ template <int W>
   }
 }
 
-// 16 planes per step: two halves of 8 planes' 64-bit counts, each converted to 8 floats and
-// joined, so the costs are computed 16 at a time. With two words (W = 2) each count is the sum of
-// the two words' popcounts.
-template <int W>
+// Two halves of 8 planes' 64-bit counts as 16 floats, planes i..i+7 in the low half.
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt"), gnu::always_inline]] inline __m512 counts_as_floats(
     __m512i low, __m512i high) {
   return _mm512_insertf32x8(_mm512_castps256_ps512(_mm512_maskz_cvtepi64_ps(0xFF, low)),
                             _mm512_maskz_cvtepi64_ps(0xFF, high), 1);
 }
 
+// 16 planes per step: two halves of 8 planes' counts (counts_as_floats), so the costs are
+// computed 16 at a time. With two words (W = 2) each count is the sum of the two words' popcounts.
 template <int W>
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512vpopcntdq,avx2,popcnt")]] void scan_planes_avx512(
     const Scratch::MaskPlanes& planes, std::size_t from, float hi, const MaskBits<W>& mask, const SahAxis& sah,
@@ -1375,14 +1374,14 @@ template <int W>
       const __m512 area_right = _mm512_mul_ps(
           two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale), perimeter)));
       // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
-      __m512 a = counts_as_floats<W>(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high));
-      __m512 b = counts_as_floats<W>(right_low, right_high);
+      __m512 a = counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high));
+      __m512 b = counts_as_floats(right_low, right_high);
       __m512 c = _mm512_add_ps(
           k_t, _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, a), _mm512_mul_ps(area_right, b))));
       __mmask16 empty_side = _mm512_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
       const __m512 cost_left = _mm512_mask_mul_ps(c, empty_side, c, bonus);
-      a = counts_as_floats<W>(left_low, left_high);
-      b = counts_as_floats<W>(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high));
+      a = counts_as_floats(left_low, left_high);
+      b = counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high));
       c = _mm512_add_ps(k_t,
                         _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, a), _mm512_mul_ps(area_right, b))));
       empty_side = _mm512_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
