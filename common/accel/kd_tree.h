@@ -253,6 +253,27 @@ struct KdBuildOptions {
   /// Off: clamped boxes (faster builds). The renderer turns it off for
   /// trees rebuilt as frames go by (those of meshes that move) unless told otherwise (KdClip).
   bool clip = true;
+  /// View-aware SAH for the nodes of at most footprint_max_refs references: a packet of rays is
+  /// traced as one, so it crosses a node when any part of its footprint does, and a node far
+  /// narrower than a packet is crossed by nearly every packet that crosses its parent. The SAH
+  /// then counts each length of such a node footprint_pixels pixels longer, a pixel being
+  /// pixel_slope x the node's distance from footprint_eye (lengths under an eighth of a pixel
+  /// grow in proportion instead). Those nodes are split only where the triangle tests saved pay
+  /// for the step, and the big scenes' trees have 1.5-2.7x fewer nodes. The renderer aims it
+  /// (aim_kd_build: the frame's eye, and pixel_slope from its field of view and height); with
+  /// pixel_slope 0 (the default, no camera), footprint_pixels 0 or footprint_max_refs 0 the
+  /// plain SAH builds the same tree as before, bit for bit. The SAH cost KdBuildStats reports
+  /// is always the plain SAH's.
+  ///
+  /// Defaults 2 pixels, 32 references (tests/bench/results/footprint_*.md, trace_experiments.md,
+  /// session 36): 16-wide packets 1.13-1.14x on spd-balls, 1.03-1.08x on spd-mount-s10 and
+  /// 1.05-1.06x on spd-balls-s3. Above 32 references spd-tree lost (0.88x at no limit: the
+  /// SAH ignores that a packet stops at its first hits, and a merged leaf of a closed mesh is
+  /// tested front and back); 4 pixels lost more there.
+  float footprint_pixels = 2.0f;
+  int footprint_max_refs = 32;
+  float pixel_slope = 0.0f;
+  glm::vec3 footprint_eye{0.0f};
   /// Vector code in the build where the CPU has it (with AVX-512: the event sweep's SAH 16
   /// events at a time, the split axis's classification and the split of a node's event lists
   /// 8 at a time, event lists under 64 sorted by rank, clipped bounds rounded outward by

@@ -80,6 +80,9 @@ constexpr std::size_t kMaxMaskRefs = 64 * kMaskWords;
 // What every node of one build shares. In the binned top levels a reference's bounds in a
 // node are its triangle's bounds clamped to the node's box; in the exact sweep they are the
 // bounds of the triangle clipped to the node's box (clipped_bounds()).
+// footprint_length's cap: an eighth of a pixel.
+constexpr float kFootprintSteps = 8.0f;
+
 struct BuildContext {
   const KdBuildOptions& options;
   const RawArray<Aabb>& tri_box;
@@ -104,6 +107,13 @@ struct BuildContext {
   // threads have nothing to do.
   std::size_t side_by_side_above = 0;
   std::size_t threads = 1;  // build_threads()
+  // The view-aware SAH (KdBuildOptions::footprint_pixels): a pixel's width per unit of distance
+  // from `eye` in the SAH's scaled lengths, footprint_length's `grow` (0: the plain SAH), and
+  // the largest node it applies to.
+  float pixel_slope = 0.0f;
+  float footprint_grow = 0.0f;
+  std::size_t footprint_max_refs = 0;
+  glm::vec3 eye{0.0f};
   // The build's work in hand: top nodes and blocks being built or waiting for a thread, and
   // forked children; a builder waiting for its fork's child does not count. Fewer than
   // `threads` means a thread has nothing to do, and then any block's next large enough split
@@ -152,22 +162,61 @@ float scaled_area(const Aabb& box, float scale) {
   return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
 }
 
+// What the SAH takes of a node besides its box: with a view-aware SAH (KdBuildOptions::
+// footprint_pixels F > 0, a node of at most footprint_max_refs references) the lengths
+// footprint_length adds to its extents, `cap` and `grow`, and 1 / its area with them added.
+// Otherwise `grow` is 0, and every length and the area are the plain SAH's to the bit.
+struct SahFrame {
+  float inv_area = 0.0f;
+  float cap = 0.0f;
+  float grow = 0.0f;
+};
+
+// A length `x` of a box as the view-aware SAH counts it: x + grow min(x, cap). With cap an
+// eighth of a pixel at the node's distance from the eye and grow 8 F, every length of an
+// eighth of a pixel or more is F pixels longer (a packet of rays is traced as one: it crosses a
+// box when any part of its footprint does), and shorter ones 1 + 8 F times as long, so that a
+// flat or needle-thin box is not made as likely to be crossed as a pixel-wide one.
+inline float footprint_length(float x, float cap, float grow) { return x + grow * std::min(x, cap); }
+
+// footprint_length, 16 lengths at once (the same operations).
+[[gnu::target("avx512f")]] inline __m512 footprint_length16(__m512 x, __m512 cap, __m512 grow) {
+  return _mm512_add_ps(x, _mm512_mul_ps(grow, _mm512_maskz_min_ps(0xFFFF, x, cap)));  // maskz: GCC 12 warns on min_ps
+}
+
+// The SAH's view of a node of `count` references in `box` (see SahFrame).
+SahFrame sah_frame(const BuildContext& ctx, const Aabb& box, std::size_t count) {
+  SahFrame f;
+  if (ctx.footprint_grow > 0.0f && count <= ctx.footprint_max_refs) {
+    const glm::vec3 d = glm::max(glm::max(box.lo - ctx.eye, ctx.eye - box.hi), glm::vec3(0.0f));
+    const float cap = ctx.pixel_slope * std::sqrt(glm::dot(d, d)) * (1.0f / kFootprintSteps);
+    if (std::isfinite(cap)) f.cap = cap, f.grow = ctx.footprint_grow;
+  }
+  glm::vec3 e = box.extent() * ctx.sah_scale;
+  for (int a = 0; a < 3; ++a) e[a] = footprint_length(e[a], f.cap, f.grow);
+  f.inv_area = 1.0f / (2.0f * (e.x * e.y + e.y * e.z + e.z * e.x));
+  return f;
+}
+
 // SAH cost of cutting `box` at `pos` along `axis` (Wald & Havran 2006, section 3), with the
 // areas of the two halves written as the box's cross-section plus the cut length times the
 // perimeter of that cross-section.
 class SahAxis {
  public:
-  SahAxis(const KdBuildOptions& options, const Aabb& box, int axis, float inv_area, float scale)
+  // With a footprint every length is footprint_length's (the cut length's too, in cost()).
+  SahAxis(const KdBuildOptions& options, const Aabb& box, int axis, const SahFrame& frame, float scale)
       : lo_(box.lo[axis]), hi_(box.hi[axis]), k_t_(options.traversal_cost),
-        k_i_(options.intersection_cost * inv_area), bonus_(1.0f - options.empty_bonus), scale_(scale) {
+        k_i_(options.intersection_cost * frame.inv_area), bonus_(1.0f - options.empty_bonus), scale_(scale),
+        cap_(frame.cap), grow_(frame.grow) {
     const glm::vec3 e = box.extent() * scale;
-    const float du = e[(axis + 1) % 3], dv = e[(axis + 2) % 3];
+    const float du = footprint_length(e[(axis + 1) % 3], cap_, grow_);
+    const float dv = footprint_length(e[(axis + 2) % 3], cap_, grow_);
     cross_ = du * dv;
     perimeter_ = du + dv;
   }
   [[nodiscard]] float cost(float pos, std::size_t n_left, std::size_t n_right) const {
-    const float area_left = 2.0f * (cross_ + ((pos - lo_) * scale_) * perimeter_);
-    const float area_right = 2.0f * (cross_ + ((hi_ - pos) * scale_) * perimeter_);
+    const float area_left = 2.0f * (cross_ + footprint_length((pos - lo_) * scale_, cap_, grow_) * perimeter_);
+    const float area_right = 2.0f * (cross_ + footprint_length((hi_ - pos) * scale_, cap_, grow_) * perimeter_);
     float c = k_t_ + k_i_ * (area_left * static_cast<float>(n_left) + area_right * static_cast<float>(n_right));
     if (n_left == 0 || n_right == 0) c *= bonus_;
     return c;
@@ -175,7 +224,7 @@ class SahAxis {
 
   // Public for the vector code (scan_planes_avx512, best_on_axis_avx512), which does cost()'s
   // operations in its order, 8 or 16 planes at a time.
-  float lo_, hi_, k_t_, k_i_, bonus_, scale_, cross_ = 0, perimeter_ = 0;
+  float lo_, hi_, k_t_, k_i_, bonus_, scale_, cap_, grow_, cross_ = 0, perimeter_ = 0;
 };
 
 // Clipping straddling triangles ("perfect splits", Wald & Havran 2006, section 4.3). The
@@ -962,6 +1011,7 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   const __m512 box_lo = _mm512_set1_ps(sah.lo_), box_hi = _mm512_set1_ps(sah.hi_);
   const __m512 scale = _mm512_set1_ps(sah.scale_), perimeter = _mm512_set1_ps(sah.perimeter_);
   const __m512 cross = _mm512_set1_ps(sah.cross_), two = _mm512_set1_ps(2.0f);
+  const __m512 cap = _mm512_set1_ps(sah.cap_), grow = _mm512_set1_ps(sah.grow_);
   const __m512 k_t = _mm512_set1_ps(sah.k_t_), k_i = _mm512_set1_ps(sah.k_i_), bonus = _mm512_set1_ps(sah.bonus_);
   const __m512 zero = _mm512_setzero_ps();
   const float nan_value = std::numeric_limits<float>::quiet_NaN();
@@ -1029,9 +1079,13 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
     if (inside != 0) {
       const __mmask16 has_planar = _mm512_test_epi32_mask(planar, planar);
       const __m512 area_left = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale), perimeter)));
+          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale),
+                                                                     cap, grow),
+                                                  perimeter)));
       const __m512 area_right = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale), perimeter)));
+          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale),
+                                                                     cap, grow),
+                                                  perimeter)));
       // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
       __m512 na = _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar));
       __m512 nb = _mm512_maskz_cvtepi32_ps(0xFFFF, right);
@@ -1083,7 +1137,7 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
 // `left`, `right` and `planar` are the planes' reference counts. Shared by the event sweep
 // (best_on_axis_avx2) and the bit-mask stage's plane scan (scan_planes_avx2).
 struct SahCosts8 {
-  __m256 lo, hi, scale, perimeter, cross, two, k_t, k_i, bonus, zero;
+  __m256 lo, hi, scale, perimeter, cross, cap, grow, two, k_t, k_i, bonus, zero;
 
   [[gnu::target("avx2")]] explicit SahCosts8(const SahAxis& sah)
       : lo(_mm256_set1_ps(sah.lo_)),
@@ -1091,6 +1145,8 @@ struct SahCosts8 {
         scale(_mm256_set1_ps(sah.scale_)),
         perimeter(_mm256_set1_ps(sah.perimeter_)),
         cross(_mm256_set1_ps(sah.cross_)),
+        cap(_mm256_set1_ps(sah.cap_)),
+        grow(_mm256_set1_ps(sah.grow_)),
         two(_mm256_set1_ps(2.0f)),
         k_t(_mm256_set1_ps(sah.k_t_)),
         k_i(_mm256_set1_ps(sah.k_i_)),
@@ -1102,9 +1158,11 @@ struct SahCosts8 {
     const __m256 has_planar = _mm256_castsi256_ps(
         _mm256_xor_si256(_mm256_cmpeq_epi32(planar, _mm256_setzero_si256()), _mm256_set1_epi32(-1)));
     const __m256 area_left =
-        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(pos, lo), scale), perimeter)));
+        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(length(_mm256_mul_ps(_mm256_sub_ps(pos, lo), scale)),
+                                                              perimeter)));
     const __m256 area_right =
-        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(hi, pos), scale), perimeter)));
+        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(length(_mm256_mul_ps(_mm256_sub_ps(hi, pos), scale)),
+                                                              perimeter)));
     // (a, b) = (left + planar, right), then (left, right + planar).
     const __m256 cost_left = with_bonus(area_left, area_right, _mm256_cvtepi32_ps(_mm256_add_epi32(left, planar)),
                                         _mm256_cvtepi32_ps(right));
@@ -1117,6 +1175,10 @@ struct SahCosts8 {
   }
 
  private:
+  // footprint_length, 8 lengths at once.
+  [[gnu::target("avx2")]] __m256 length(__m256 x) const {
+    return _mm256_add_ps(x, _mm256_mul_ps(grow, _mm256_min_ps(x, cap)));
+  }
   // k_t + k_i (area_left a + area_right b), times the empty-space bonus where a or b is 0.
   [[gnu::target("avx2")]] __m256 with_bonus(__m256 area_left, __m256 area_right, __m256 a, __m256 b) const {
     const __m256 c =
@@ -1243,9 +1305,9 @@ struct SahCosts8 {
 // references start and `n_right` end beyond everything before it. With options.simd, 16 events
 // at a time where the CPU has AVX-512; the same split either way.
 SplitChoice best_on_axis(const BuildContext& ctx, const Event* ev, std::size_t size, std::size_t n_left,
-                         std::size_t n_right, const Aabb& box, int axis, float inv_area) {
+                         std::size_t n_right, const Aabb& box, int axis, const SahFrame& frame) {
   if (!(box.hi[axis] > box.lo[axis])) return SplitChoice{};
-  const SahAxis sah(ctx.options, box, axis, inv_area, ctx.sah_scale);
+  const SahAxis sah(ctx.options, box, axis, frame, ctx.sah_scale);
   if (ctx.avx512) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
   if (ctx.avx2) return best_on_axis_avx2(sah, ev, size, n_left, n_right, axis);
   SplitChoice best;
@@ -1345,6 +1407,7 @@ template <int W>
   const __m512 box_lo = _mm512_set1_ps(sah.lo_), box_hi = _mm512_set1_ps(sah.hi_);
   const __m512 scale = _mm512_set1_ps(sah.scale_), perimeter = _mm512_set1_ps(sah.perimeter_);
   const __m512 cross = _mm512_set1_ps(sah.cross_), two = _mm512_set1_ps(2.0f);
+  const __m512 cap = _mm512_set1_ps(sah.cap_), grow = _mm512_set1_ps(sah.grow_);
   const __m512 k_t = _mm512_set1_ps(sah.k_t_), k_i = _mm512_set1_ps(sah.k_i_), bonus = _mm512_set1_ps(sah.bonus_);
   const __m512 zero = _mm512_setzero_ps();
   // A mask of 16 planes from two of 8: planes i..i+7 in the low byte.
@@ -1370,9 +1433,13 @@ template <int W>
       const __mmask16 has_planar =
           joined(_mm512_test_epi64_mask(planar_low, planar_low), _mm512_test_epi64_mask(planar_high, planar_high));
       const __m512 area_left = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale), perimeter)));
+          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale),
+                                                                     cap, grow),
+                                                  perimeter)));
       const __m512 area_right = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale), perimeter)));
+          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale),
+                                                                     cap, grow),
+                                                  perimeter)));
       // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
       __m512 a = counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high));
       __m512 b = counts_as_floats(right_low, right_high);
@@ -1735,11 +1802,11 @@ class MaskBuilder {
       SplitChoice split;
       std::size_t chosen = kNone;  // the split's plane, in s_.mask_planes[split.axis]
       if (task.depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
-        const float inv_area = 1.0f / area;
+        const SahFrame frame = sah_frame(ctx_, box, count);
         for (int axis = 0; axis < 3; ++axis) {
           const float lo = box.lo[axis], hi = box.hi[axis];
           if (!(hi > lo)) continue;
-          const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
+          const SahAxis sah(options, box, axis, frame, ctx_.sah_scale);
           const Scratch::MaskPlanes& planes = s_.mask_planes[axis];
           const std::size_t from = task.from[axis];
           RTC_DCHECK(from == first_plane_above(planes, lo), "bit-mask stage: a node's first plane");
@@ -1896,12 +1963,12 @@ class BlockBuilder {
     const float area = scaled_area(box, ctx_.sah_scale);
     SplitChoice split;
     if (depth < ctx_.max_depth && count > static_cast<std::size_t>(options.leaf_size) && area > 0.0f) {
-      const float inv_area = 1.0f / area;
-      split = wide_empty_cut(off, len, count, box, inv_area);
+      const SahFrame frame = sah_frame(ctx_, box, count);
+      split = wide_empty_cut(off, len, count, box, frame);
       if (split.axis < 0) {
         SplitChoice c[3];
         const auto sweep = [&](int axis) {
-          c[axis] = best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, inv_area);
+          c[axis] = best_on_axis(ctx_, s_.arena.at(off[axis]), len[axis], 0, count, box, axis, frame);
         };
         if (side_by_side_ && count >= kSideBySideSetUp) {
           tbb::parallel_invoke([&] { sweep(0); }, [&] { sweep(1); }, [&] { sweep(2); });
@@ -2221,7 +2288,7 @@ class BlockBuilder {
   // references at the plane stay with the rest (planar_left: true at the upper bound), so every
   // reference goes to one side and cut_off_empty takes the cut. No cut: axis -1.
   [[nodiscard]] SplitChoice wide_empty_cut(const std::size_t off[3], const std::size_t len[3], std::size_t count,
-                                           const Aabb& box, float inv_area) const {
+                                           const Aabb& box, const SahFrame& frame) const {
     const KdBuildOptions& options = ctx_.options;
     if (!(options.empty_cut <= 1.0f)) return SplitChoice{};
     float widest = 0.0f;
@@ -2239,7 +2306,7 @@ class BlockBuilder {
     const Event* ev = s_.arena.at(off[axis]);
     const float p = upper ? ev[len[axis] - 1].pos : ev[0].pos;
     if (!(p > box.lo[axis] && p < box.hi[axis])) return SplitChoice{};
-    const SahAxis sah(options, box, axis, inv_area, ctx_.sah_scale);
+    const SahAxis sah(options, box, axis, frame, ctx_.sah_scale);
     const float cost = upper ? sah.cost(p, count, 0) : sah.cost(p, 0, count);
     if (!(cost < options.intersection_cost * static_cast<float>(count))) return SplitChoice{};
     return SplitChoice{axis, p, upper, cost};
@@ -2420,12 +2487,12 @@ class TopBuilder {
       count(0);
     }
     const Bins& b = per_chunk[0];
-    const float inv_area = 1.0f / area;
+    const SahFrame frame = sah_frame(ctx_, box, n);
     SplitChoice best[3];
     int best_bin[3] = {-1, -1, -1};
     for (int axis = 0; axis < 3; ++axis) {
       if (!(scale[axis] > 0.0f)) continue;
-      const SahAxis sah(ctx_.options, box, axis, inv_area, ctx_.sah_scale);
+      const SahAxis sah(ctx_.options, box, axis, frame, ctx_.sah_scale);
       std::size_t n_left = 0, n_right = n;
       for (int i = 1; i < bins; ++i) {
         n_left += b.start[axis][i - 1];
@@ -2515,7 +2582,7 @@ class TopBuilder {
     } else {
       collect(0);
     }
-    const float inv_area = 1.0f / scaled_area(box, ctx_.sah_scale);
+    const SahFrame frame = sah_frame(ctx_, box, n);
     std::vector<Event> buffer;
     for (int axis = 0; axis < 3; ++axis) {
       Event* ev = events[axis].get();
@@ -2534,7 +2601,7 @@ class TopBuilder {
       }
       // Equal events are interchangeable, so the sort's order among them cannot matter.
       sort_events(ev, size, buffer, ctx_);
-      const SplitChoice exact = best_on_axis(ctx_, ev, size, n_left, n_right, box, axis, inv_area);
+      const SplitChoice exact = best_on_axis(ctx_, ev, size, n_left, n_right, box, axis, frame);
       if (exact.cost < best[axis].cost) best[axis] = exact;
     }
   }
@@ -2978,6 +3045,14 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below, sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
                    std::max(options.leaf_box_saving, 0.0f), threads > 1 ? count / 4 : SIZE_MAX, threads};
+  const glm::vec3 eye = options.footprint_eye;
+  if (options.footprint_pixels > 0.0f && options.pixel_slope > 0.0f && options.footprint_max_refs > 0 &&
+      std::isfinite(options.footprint_pixels * options.pixel_slope) && std::isfinite(eye.x + eye.y + eye.z)) {
+    ctx.pixel_slope = options.pixel_slope * ctx.sah_scale;
+    ctx.footprint_grow = options.footprint_pixels * kFootprintSteps;
+    ctx.footprint_max_refs = static_cast<std::size_t>(options.footprint_max_refs);
+    ctx.eye = eye;
+  }
   ctx.work.store(1, std::memory_order_relaxed);  // the root
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 

@@ -267,6 +267,12 @@ bool kd_clip_for(const Scene& scene, KdClip clip) {
   return kd_clip_for(clip, std::find(moving.begin(), moving.end(), true) != moving.end());
 }
 
+void aim_kd_build(KdBuildOptions& kd, const Camera& camera, int height) {
+  const double h = std::tan(glm::radians(static_cast<double>(camera.vfov_deg)) * 0.5);
+  kd.pixel_slope = height > 0 && std::isfinite(h) ? static_cast<float>(2.0 * h / height) : 0.0f;
+  kd.footprint_eye = camera.eye;
+}
+
 std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
                                               const KdBuildOptions& kd) {
   const FramePose pose = pose_at(scene, frame);
@@ -274,6 +280,7 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   auto geometry = std::make_shared<FrameGeometry>();
   flatten(scene, pose, *geometry);
   KdBuildOptions tree_options = kd;
+  aim_kd_build(tree_options, fs->camera, fs->height);
   tree_options.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
   geometry->trees.push_back(
       std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, tree_options)));
@@ -323,6 +330,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
   const double flatten_ms = flatten_timer.elapsed_ms();
 
   KdBuildOptions kd = options_.kd;
+  aim_kd_build(kd, fs->camera, fs->height);
   kd.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
   Timer build_timer;
   int built = 0;
@@ -382,6 +390,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
             // Built once over the file's vertices, so clipped like the static tree.
             KdBuildOptions object_kd = kd;
             object_kd.clip = kd_clip_for(options_.kd_clip, false);
+            object_kd.pixel_slope = 0.0f;  // in object space, for every frame's pose: no view to aim at
             object_trees_[mi] = build_mesh_tree(mesh.positions, mesh.triangles, t_base, object_kd);
             ++built;
             spdlog::debug("frame {}: mesh {} ({}) object-space tree, built once: {}", frame, mi, mesh.name,

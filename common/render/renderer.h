@@ -115,6 +115,10 @@ class Renderer {
 /// without RenderOptions::split_static_trees use.
 [[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
 
+/// Points `kd`'s view-aware SAH at `camera` for a `height`-pixel image (KdBuildOptions::
+/// footprint_eye and pixel_slope; footprint_pixels says whether it is used).
+void aim_kd_build(KdBuildOptions& kd, const Camera& camera, int height);
+
 /// The box every primary ray that can hit anything passes through: the union of the bounds of
 /// the frame's kd-trees (KdTree::bounds(), or TreeSpace::world_bounds for a tree in object
 /// space; empty when there is nothing to hit).

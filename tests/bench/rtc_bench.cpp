@@ -255,6 +255,14 @@ int run(int argc, char** argv) {
                "time by process CPU time (summed over threads), not wall time: for A/B runs on a busy machine");
   rtc::KdBuildOptions kd_options;
   app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);
+  app.add_option("--kd-footprint", kd_options.footprint_pixels,
+                 "view-aware SAH: small nodes' lengths counted this many pixels longer (0: the plain SAH)")
+      ->check(CLI::Range(0.0f, 1024.0f))
+      ->capture_default_str();
+  app.add_option("--kd-footprint-max-refs", kd_options.footprint_max_refs,
+                 "view-aware SAH: for nodes of at most this many references")
+      ->check(CLI::Range(0, 1 << 30))
+      ->capture_default_str();
   app.add_option("--kd-intersection-cost", kd_options.intersection_cost, "SAH K_I")->check(CLI::PositiveNumber);
   app.add_option("--kd-empty-bonus", kd_options.empty_bonus, "SAH empty-space bonus")->check(CLI::Range(0.0f, 0.99f));
   app.add_option("--kd-empty-cut", kd_options.empty_cut,
@@ -293,6 +301,12 @@ int run(int argc, char** argv) {
                  "where given) and time its packets and single rays rep by rep beside the first tree's (paired "
                  "ratios; the answers must be the same)")
       ->check(CLI::Range(1, 1 << 30));
+  float ab_footprint = -1.0f;
+  app.add_option("--ab-kd-footprint", ab_footprint,
+                 "primary and shadow modes: also build a tree with this --kd-footprint (and the other --ab-kd-* "
+                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired "
+                 "ratios; the answers must be the same)")
+      ->check(CLI::Range(0.0f, 1024.0f));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
@@ -340,7 +354,8 @@ int run(int argc, char** argv) {
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
-  const bool ab_tree = ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0;
+  const bool ab_tree =
+      ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_footprint >= 0.0f;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -437,6 +452,7 @@ int run(int argc, char** argv) {
   if (ab_leaf_box_saving >= 0.0f) ab_options.leaf_box_saving = ab_leaf_box_saving;
   if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
   if (ab_exact_below >= 0) ab_options.exact_below = ab_exact_below;
+  if (ab_footprint >= 0.0f) ab_options.footprint_pixels = ab_footprint;
   if (ab_tree) {
     fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
@@ -469,6 +485,8 @@ int run(int argc, char** argv) {
                          {"kd_bytes", kd.bytes},
                          {"kd_clip", kd_options.clip},
                          {"kd_traversal_cost", kd_options.traversal_cost},
+                         {"kd_footprint", kd_options.footprint_pixels},
+                         {"kd_footprint_max_refs", kd_options.footprint_max_refs},
                          {"kd_intersection_cost", kd_options.intersection_cost},
                          {"kd_mask_below", kd_options.effective_mask_below()},
                          {"kd_empty_cut", kd_options.empty_cut},
@@ -634,7 +652,9 @@ int run(int argc, char** argv) {
         out["ab"] = {{"kd_leaf_box_saving", ab_options.leaf_box_saving},
                      {"kd_empty_cut", ab_options.empty_cut},
                      {"kd_exact_below", ab_options.exact_below},
+                     {"kd_footprint", ab_options.footprint_pixels},
                      {"kd_nodes", kd_ab.nodes},
+                     {"build_ms", kd_ab.build_ms},
                      {"kd_sah_cost", kd_ab.sah_cost},
                      {"kd_leaf_boxes", kd_ab.leaf_boxes},
                      {"mrays_per_s", mrays},

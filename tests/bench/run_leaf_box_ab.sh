@@ -1,18 +1,19 @@
 #!/usr/bin/env bash
 # Leaf boxes (KdBuildOptions::leaf_box_saving), or with AB_OPTION=kd-empty-cut the empty-gap cut
 # (KdBuildOptions::empty_cut), or with AB_OPTION=kd-exact-below the size of the exact sweep's
-# blocks (KdBuildOptions::exact_below), at two values on every view of the shared scene pack, in
+# blocks (KdBuildOptions::exact_below), or with AB_OPTION=kd-footprint the view-aware SAH's
+# packet width in pixels (KdBuildOptions::footprint_pixels), at two values on every view of the shared scene pack, in
 # one process per view: rtc-bench builds a tree with each value and times both trees' packets
 # and single rays rep by rep (--ab-kd-leaf-box-saving / --ab-kd-empty-cut /
-# --ab-kd-exact-below), so a slow spell of the machine falls on both alike, and checks that
+# --ab-kd-exact-below / --ab-kd-footprint), so a slow spell of the machine falls on both alike, and checks that
 # both trees give the same answers. Writes
 # tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
 # (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
 # first's, paired rep by rep).
 # Usage: tests/bench/run_leaf_box_ab.sh NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]
 #   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default); with
-#   AB_OPTION=kd-empty-cut or kd-exact-below A and B are required (e.g. 2 0.2: off against the
-#   default; 4096 1024)
+#   AB_OPTION=kd-empty-cut, kd-exact-below or kd-footprint A and B are required (e.g. 2 0.2: off
+#   against the default; 4096 1024; 0 2)
 # RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench); AB_ISA: the
 # kernel ISA (default: rtc-bench's, the widest the CPU runs).
 set -euo pipefail
@@ -25,10 +26,11 @@ reps=${4:-15}
 option=${AB_OPTION:-kd-leaf-box-saving}
 case "$option" in
   kd-leaf-box-saving) a=${5:-0} b=${6:-2} ;;
-  kd-empty-cut | kd-exact-below)
+  kd-empty-cut | kd-exact-below | kd-footprint)
     [ $# -ge 6 ] || { echo "run_leaf_box_ab: AB_OPTION=$option needs A and B" >&2; exit 2; }
     a=$5 b=$6 ;;
-  *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving, kd-empty-cut or kd-exact-below, got $option" >&2
+  *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving, kd-empty-cut, kd-exact-below or kd-footprint," \
+      "got $option" >&2
     exit 2 ;;
 esac
 bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}

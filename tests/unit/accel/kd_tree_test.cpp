@@ -814,10 +814,12 @@ std::vector<Isa> build_vector_isas() {
 // Builds every soup with KdBuildOptions::simd off and on, the latter once per vector ISA the CPU
 // has (each with its K_T, the bit-mask stage below `mask_below` references, with clipping and
 // without) and requires node for node the same tree.
-void expect_vector_build_matches_scalar(const std::vector<std::pair<Soup, float>>& soups, int mask_below) {
+// `base`: the other options (KdBuildOptions' defaults, or a view-aware SAH's eye).
+void expect_vector_build_matches_scalar(const std::vector<std::pair<Soup, float>>& soups, int mask_below,
+                                        const KdBuildOptions& base = {}) {
   for (const auto& [s, traversal_cost] : soups) {
     for (bool clip : {true, false}) {
-      KdBuildOptions scalar;
+      KdBuildOptions scalar = base;
       scalar.clip = clip;
       scalar.simd = false;
       scalar.mask_below = mask_below;
@@ -874,6 +876,53 @@ TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
        {planar_piles(17, 3000), 3.0f}, {random_soup(29, 300, 0.5f), 1.0f}, {signed_zero_cells(), 0.1f},
        {random_soup(31, 70000, 0.02f), 3.0f}, {sphere_and_grid(132), 3.0f}, {walled_gap(), 3.0f}},
       0));
+}
+
+// A view-aware SAH (KdBuildOptions::footprint_pixels) aimed from `eye` with pixels `slope`
+// wide per unit of distance.
+KdBuildOptions aimed(glm::vec3 eye, float slope, float pixels = 2.0f, int max_refs = 32) {
+  KdBuildOptions o;
+  o.footprint_pixels = pixels;
+  o.footprint_max_refs = max_refs;
+  o.pixel_slope = slope;
+  o.footprint_eye = eye;
+  return o;
+}
+
+TEST(KdTree, ViewAwareSahVectorCodeBuildsTheScalarTree) {
+  // The footprint's lengths (footprint_length) go through the same float operations in the
+  // scalar SAH, the event sweep's vector code and the bit-mask stage's plane scans, so node for
+  // node the same tree: swept to the leaves, with the bit masks below 64, and from a binned
+  // root (70000 triangles), here for nodes of every size. The eye 3-5 units from the soups,
+  // pixels 0.01 wide per unit: lengths 0.06-0.1 longer, the size of their deeper nodes.
+  const KdBuildOptions view = aimed(glm::vec3(0.3f, -0.2f, 4.0f), 0.01f, 2.0f, 1 << 30);
+  for (int mask_below : {0, 64}) {
+    SCOPED_TRACE(testing::Message() << "mask below " << mask_below);
+    ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
+        {{random_soup(7, 5000, 0.05f), 3.0f}, {sphere_and_grid(24), 3.0f}, {sliver_fan(13, 3000), 3.0f},
+         {planar_piles(17, 3000), 3.0f}, {random_soup(29, 300, 0.5f), 1.0f}, {signed_zero_cells(), 0.1f},
+         {random_soup(31, 70000, 0.02f), 3.0f}},
+        mask_below, view));
+  }
+}
+
+TEST(KdTree, ViewAwareSahIsThePlainSahWithoutAPacketOrAnEye) {
+  // No pixel width (no camera given), no footprint or no node small enough is the plain SAH to
+  // the bit; a footprint wider than the small nodes leaves fewer of them, and the plain SAH
+  // cost it reports stays close to the plain tree's.
+  const Soup s = random_soup(41, 20000, 0.01f);
+  KdBuildOptions plain_options;
+  plain_options.footprint_pixels = 0.0f;
+  const KdTree plain = KdTree::build(s.positions, s.triangles, plain_options);
+  const glm::vec3 eye(0.0f, 0.0f, 5.0f);
+  expect_same_tree(plain, KdTree::build(s.positions, s.triangles, KdBuildOptions{}));
+  expect_same_tree(plain, KdTree::build(s.positions, s.triangles, aimed(eye, 0.0f)));
+  expect_same_tree(plain, KdTree::build(s.positions, s.triangles, aimed(eye, 0.01f, 0.0f)));
+  expect_same_tree(plain, KdTree::build(s.positions, s.triangles, aimed(eye, 0.01f, 2.0f, 0)));
+  const KdTree wide = KdTree::build(s.positions, s.triangles, aimed(eye, 0.002f));
+  EXPECT_LT(wide.stats().nodes, plain.stats().nodes * 19 / 20);  // 9,521 against 10,493
+  EXPECT_LT(wide.stats().sah_cost, plain.stats().sah_cost * 1.05);  // 264.4 against 262.9
+  EXPECT_GE(wide.stats().sah_cost, plain.stats().sah_cost * 0.99);
 }
 
 TEST(KdTree, BinnedRootRefinesToTheExactPlaneFromEveryChunk) {
@@ -1330,12 +1379,19 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
   for (bool watertight : {false, true}) {
   const KdTree base = KdTree::build(s.positions, s.triangles, with_test(watertight));
   trace_kernels().intersect(base, rays.data(), ref.data(), rays.size(), true);
-  for (const auto& [kt, ki, leaf, clip, mask, empty_cut] :
+  for (auto [kt, ki, leaf, clip, mask, empty_cut] :
        {std::tuple{1.0f, 1.5f, 1, true, 64, 2.0f}, std::tuple{4.0f, 1.0f, 1, true, 64, 0.0f},
         std::tuple{1.0f, 3.0f, 8, true, 64, 0.5f}, std::tuple{2.0f, 1.5f, 1, false, 64, 0.1f},
         std::tuple{3.0f, 1.5f, 1, true, 0, 0.0f}, std::tuple{2.0f, 1.5f, 1, true, 9, 2.0f},
-        std::tuple{1.0f, 1.5f, 1, true, 256, 0.2f}, std::tuple{2.0f, 1.0f, 1, true, 100, 0.0f}}) {
+        std::tuple{1.0f, 1.5f, 1, true, 256, 0.2f}, std::tuple{2.0f, 1.0f, 1, true, 100, 0.0f},
+        std::tuple{3.0f, 1.0f, 1, true, -1, 0.2f}}) {
     KdBuildOptions o = with_test(watertight);
+    if (mask < 0) {  // the defaults with a view-aware SAH: lengths 0.04-0.08 longer
+      mask = 64;
+      o.footprint_pixels = 2.0f;
+      o.pixel_slope = 0.01f;
+      o.footprint_eye = glm::vec3(0.2f, 0.1f, 3.0f);
+    }
     o.traversal_cost = kt;
     o.intersection_cost = ki;
     o.leaf_size = leaf;
@@ -1347,7 +1403,7 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
     for (std::size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
           << test_name(watertight) << " K_T " << kt << " K_I " << ki << " leaf " << leaf << " clip " << clip
-          << " mask below " << mask << " empty cut " << empty_cut << ": "
+          << " mask below " << mask << " empty cut " << empty_cut << " footprint " << o.footprint_pixels << ": "
           << test::describe_ray(rays[i]);
     }
   }
