@@ -259,7 +259,7 @@ struct KdBuildOptions {
   /// then counts each length of such a node footprint_pixels pixels longer, a pixel being
   /// pixel_slope x the node's distance from footprint_eye (lengths under an eighth of a pixel
   /// grow in proportion instead). Those nodes are split only where the triangle tests saved pay
-  /// for the step, and the big scenes' trees have 1.5-2.7x fewer nodes. The renderer aims it
+  /// for the step, and the big scenes' trees have 1.5-2.6x fewer nodes. The renderer aims it
   /// (aim_kd_build: the frame's eye, and pixel_slope from its field of view and height); with
   /// pixel_slope 0 (the default, no camera), footprint_pixels 0 or footprint_max_refs 0 the
   /// plain SAH builds the same tree as before, bit for bit. The SAH cost KdBuildStats reports
