@@ -279,16 +279,17 @@ int run(int argc, char** argv) {
                  "leaves get a box of their contents, tested before them, where it saves at least this many "
                  "triangle tests per visit by the SAH's estimate (0: no boxes)")
       ->check(CLI::Range(0.0f, 1e9f));
+  // --ab-kd-OPTION: a second tree built with another value of --kd-OPTION, timed beside the first.
+  const auto ab_help = [](const char* option) {
+    return std::string("primary and shadow modes: also build a tree with this --kd-") + option +
+           " (and the other --ab-kd-* where given) and time its packets and single rays rep by rep beside the first "
+           "tree's (paired ratios; the answers must be the same)";
+  };
   float ab_leaf_box_saving = -1.0f;
-  app.add_option("--ab-kd-leaf-box-saving", ab_leaf_box_saving,
-                 "primary and shadow modes: also build a tree with this --kd-leaf-box-saving and time its packets and "
-                 "single rays rep by rep beside the first tree's (paired ratios; the answers must be the same)")
+  app.add_option("--ab-kd-leaf-box-saving", ab_leaf_box_saving, ab_help("leaf-box-saving"))
       ->check(CLI::Range(0.0f, 1e9f));
   float ab_empty_cut = -1.0f;
-  app.add_option("--ab-kd-empty-cut", ab_empty_cut,
-                 "primary and shadow modes: also build a tree with this --kd-empty-cut (and --ab-kd-leaf-box-saving "
-                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired ratios; "
-                 "the answers must be the same)")
+  app.add_option("--ab-kd-empty-cut", ab_empty_cut, ab_help("empty-cut"))
       ->check(CLI::Range(0.0f, 1e9f));
   app.add_option("--kd-exact-below", kd_options.exact_below,
                  "nodes of more references than this are split with the binned SAH, smaller ones built as blocks "
@@ -296,16 +297,10 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   int ab_exact_below = -1;
-  app.add_option("--ab-kd-exact-below", ab_exact_below,
-                 "primary and shadow modes: also build a tree with this --kd-exact-below (and the other --ab-kd-* "
-                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired "
-                 "ratios; the answers must be the same)")
+  app.add_option("--ab-kd-exact-below", ab_exact_below, ab_help("exact-below"))
       ->check(CLI::Range(1, 1 << 30));
   float ab_footprint = -1.0f;
-  app.add_option("--ab-kd-footprint", ab_footprint,
-                 "primary and shadow modes: also build a tree with this --kd-footprint (and the other --ab-kd-* "
-                 "where given) and time its packets and single rays rep by rep beside the first tree's (paired "
-                 "ratios; the answers must be the same)")
+  app.add_option("--ab-kd-footprint", ab_footprint, ab_help("footprint"))
       ->check(CLI::Range(0.0f, 1024.0f));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
