@@ -260,10 +260,13 @@ struct KdBuildOptions {
   /// pixel_slope x the node's distance from footprint_eye (lengths under an eighth of a pixel
   /// grow in proportion instead). Those nodes are split only where the triangle tests saved pay
   /// for the step, and the big scenes' trees have 1.5-2.6x fewer nodes. The renderer aims it
-  /// (aim_kd_build: the frame's eye, and pixel_slope from its field of view and height); with
-  /// pixel_slope 0 (the default, no camera), footprint_pixels 0 or footprint_max_refs 0 the
-  /// plain SAH builds the same tree as before, bit for bit. The SAH cost KdBuildStats reports
-  /// is always the plain SAH's.
+  /// (aim_kd_build: the eye of the frame the tree is built for, and pixel_slope from its field
+  /// of view and height; a tree kept for later frames, as the static meshes' tree, keeps that
+  /// aim, which changes its speed, never its answers); with pixel_slope 0 (the default, no
+  /// camera), footprint_pixels 0 or footprint_max_refs 0 the plain SAH builds the same tree as
+  /// before, bit for bit. footprint_pixels above 1e6 counts as 1e6; an eye so far that a node's
+  /// pixel overflows leaves that node to the plain SAH. The SAH cost KdBuildStats reports is
+  /// always the plain SAH's.
   ///
   /// Defaults 2 pixels, 32 references (tests/bench/results/footprint_*.md, trace_experiments.md,
   /// session 36): 16-wide packets 1.13-1.14x on spd-balls, 1.03-1.08x on spd-mount-s10 and

@@ -77,12 +77,15 @@ constexpr int kBins = 256;
 constexpr int kMaskWords = 4;
 constexpr std::size_t kMaxMaskRefs = 64 * kMaskWords;
 
+// footprint_length's cap: an eighth of a pixel.
+constexpr float kFootprintSteps = 8.0f;
+// The widest footprint a build takes, in pixels (KdBuildOptions::footprint_pixels is clamped to
+// it): far wider than any packet, and small enough that no grown length overflows.
+constexpr float kMaxFootprintPixels = 1e6f;
+
 // What every node of one build shares. In the binned top levels a reference's bounds in a
 // node are its triangle's bounds clamped to the node's box; in the exact sweep they are the
 // bounds of the triangle clipped to the node's box (clipped_bounds()).
-// footprint_length's cap: an eighth of a pixel.
-constexpr float kFootprintSteps = 8.0f;
-
 struct BuildContext {
   const KdBuildOptions& options;
   const RawArray<Aabb>& tri_box;
@@ -108,8 +111,7 @@ struct BuildContext {
   std::size_t side_by_side_above = 0;
   std::size_t threads = 1;  // build_threads()
   // The view-aware SAH (KdBuildOptions::footprint_pixels): a pixel's width per unit of distance
-  // from `eye` in the SAH's scaled lengths, footprint_length's `grow` (0: the plain SAH), and
-  // the largest node it applies to.
+  // from `eye`, footprint_length's `grow` (0: the plain SAH), and the largest node it applies to.
   float pixel_slope = 0.0f;
   float footprint_grow = 0.0f;
   std::size_t footprint_max_refs = 0;
@@ -188,9 +190,12 @@ inline float footprint_length(float x, float cap, float grow) { return x + grow 
 SahFrame sah_frame(const BuildContext& ctx, const Aabb& box, std::size_t count) {
   SahFrame f;
   if (ctx.footprint_grow > 0.0f && count <= ctx.footprint_max_refs) {
-    const glm::vec3 d = glm::max(glm::max(box.lo - ctx.eye, ctx.eye - box.hi), glm::vec3(0.0f));
-    const float cap = ctx.pixel_slope * std::sqrt(glm::dot(d, d)) * (1.0f / kFootprintSteps);
-    if (std::isfinite(cap)) f.cap = cap, f.grow = ctx.footprint_grow;
+    // The distance in the SAH's scaled lengths, in double: no overflow or underflow for a scene
+    // 1e30 or 1e-30 across (sah_scale_for) or an eye far from it.
+    const glm::dvec3 d = glm::dvec3(glm::max(glm::max(box.lo - ctx.eye, ctx.eye - box.hi), glm::vec3(0.0f))) *
+                         static_cast<double>(ctx.sah_scale);
+    const float cap = static_cast<float>(static_cast<double>(ctx.pixel_slope) * glm::length(d) / kFootprintSteps);
+    if (std::isfinite(cap)) f.cap = cap, f.grow = ctx.footprint_grow;  // an eye too far: the plain SAH
   }
   glm::vec3 e = box.extent() * ctx.sah_scale;
   for (int a = 0; a < 3; ++a) e[a] = footprint_length(e[a], f.cap, f.grow);
@@ -3047,9 +3052,9 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
                    std::max(options.leaf_box_saving, 0.0f), threads > 1 ? count / 4 : SIZE_MAX, threads};
   const glm::vec3 eye = options.footprint_eye;
   if (options.footprint_pixels > 0.0f && options.pixel_slope > 0.0f && options.footprint_max_refs > 0 &&
-      std::isfinite(options.footprint_pixels * options.pixel_slope) && std::isfinite(eye.x + eye.y + eye.z)) {
-    ctx.pixel_slope = options.pixel_slope * ctx.sah_scale;
-    ctx.footprint_grow = options.footprint_pixels * kFootprintSteps;
+      std::isfinite(options.pixel_slope) && std::isfinite(eye.x + eye.y + eye.z)) {
+    ctx.pixel_slope = options.pixel_slope;
+    ctx.footprint_grow = std::min(options.footprint_pixels, kMaxFootprintPixels) * kFootprintSteps;
     ctx.footprint_max_refs = static_cast<std::size_t>(options.footprint_max_refs);
     ctx.eye = eye;
   }

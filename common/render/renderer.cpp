@@ -17,6 +17,7 @@
 #include "common/base/error.h"
 #include "common/base/progress.h"
 #include "common/base/timer.h"
+#include "common/math/det_math.h"
 #include "common/render/render_kernels.h"
 
 namespace rtc {
@@ -268,7 +269,8 @@ bool kd_clip_for(const Scene& scene, KdClip clip) {
 }
 
 void aim_kd_build(KdBuildOptions& kd, const Camera& camera, int height) {
-  const double h = std::tan(glm::radians(static_cast<double>(camera.vfov_deg)) * 0.5);
+  // det_tan as CameraRays: every worker builds the same tree.
+  const double h = det_tan(static_cast<double>(camera.vfov_deg) * (3.14159265358979323846 / 180.0) / 2.0);
   kd.pixel_slope = height > 0 && std::isfinite(h) ? static_cast<float>(2.0 * h / height) : 0.0f;
   kd.footprint_eye = camera.eye;
 }

@@ -893,9 +893,17 @@ TEST(KdTree, ViewAwareSahVectorCodeBuildsTheScalarTree) {
   // The footprint's lengths (footprint_length) go through the same float operations in the
   // scalar SAH, the event sweep's vector code and the bit-mask stage's plane scans, so node for
   // node the same tree: swept to the leaves, with the bit masks below 64, and from a binned
-  // root (70000 triangles), here for nodes of every size. The eye 3-5 units from the soups,
-  // pixels 0.01 wide per unit: lengths 0.06-0.1 longer, the size of their deeper nodes.
+  // root (70000 triangles), here for nodes of every size. The eye outside every soup, a few
+  // units from most, pixels 0.01 wide per unit: lengths about 0.05-0.1 longer near the soups,
+  // the size of their deeper nodes.
   const KdBuildOptions view = aimed(glm::vec3(0.3f, -0.2f, 4.0f), 0.01f, 2.0f, 1 << 30);
+  {  // the footprint is on: not the plain tree
+    const Soup s = random_soup(7, 5000, 0.05f);
+    KdBuildOptions plain;
+    plain.footprint_pixels = 0.0f;
+    EXPECT_LT(KdTree::build(s.positions, s.triangles, view).stats().nodes,
+              KdTree::build(s.positions, s.triangles, plain).stats().nodes);
+  }
   for (int mask_below : {0, 64}) {
     SCOPED_TRACE(testing::Message() << "mask below " << mask_below);
     ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
@@ -906,7 +914,7 @@ TEST(KdTree, ViewAwareSahVectorCodeBuildsTheScalarTree) {
   }
 }
 
-TEST(KdTree, ViewAwareSahIsThePlainSahWithoutAPacketOrAnEye) {
+TEST(KdTree, ViewAwareSahIsThePlainSahWhenOff) {
   // No pixel width (no camera given), no footprint or no node small enough is the plain SAH to
   // the bit; a footprint wider than the small nodes leaves fewer of them, and the plain SAH
   // cost it reports stays close to the plain tree's.
@@ -1407,6 +1415,42 @@ TEST(KdTraversal, HitsDoNotDependOnTheTreesBuildParameters) {
           << test::describe_ray(rays[i]);
     }
   }
+  }
+}
+
+TEST(KdTraversal, ViewAwareSahAtExtremeScalesAndFootprints) {
+  // The same soup 1e30 and 1e-30 across with its eye scaled alike builds the same-shaped tree
+  // as at scale 1 (the distances are taken in the SAH's scaled lengths, in double), which the
+  // view-aware SAH changed; an eye at 1e35 (every pixel overflows), an eye inside the soup and a
+  // footprint of 1e30 pixels build trees whose hits are the plain tree's, bit for bit.
+  const Soup s = random_soup(43, 3000, 0.02f);
+  const glm::vec3 eye(0.1f, 0.2f, 4.0f);
+  KdBuildOptions plain_options;
+  plain_options.footprint_pixels = 0.0f;
+  const KdTree plain = KdTree::build(s.positions, s.triangles, plain_options);
+  const KdTree view = KdTree::build(s.positions, s.triangles, aimed(eye, 0.004f));
+  ASSERT_LT(view.stats().nodes, plain.stats().nodes);
+  for (float scale : {0x1p100f, 0x1p-100f}) {  // powers of two: the scaled soup is exact
+    SCOPED_TRACE(testing::Message() << "scale " << scale);
+    Soup scaled = s;
+    for (glm::vec3& p : scaled.positions) p *= scale;
+    const KdTree t = KdTree::build(scaled.positions, scaled.triangles, aimed(eye * scale, 0.004f));
+    EXPECT_EQ(t.stats().nodes, view.stats().nodes);
+    EXPECT_EQ(t.stats().prim_refs, view.stats().prim_refs);
+  }
+  const std::vector<RayQuery> rays = random_rays(47, 20000, true);
+  std::vector<RayHit> ref(rays.size()), got(rays.size());
+  trace_kernels().intersect(plain, rays.data(), ref.data(), rays.size(), true);
+  for (const KdBuildOptions& o :
+       {aimed(glm::vec3(1e35f, 0.0f, 0.0f), 0.004f), aimed(glm::vec3(0.0f), 0.004f), aimed(eye, 0.004f, 1e30f),
+        aimed(eye, 1e30f)}) {
+    const KdTree t = KdTree::build(s.positions, s.triangles, o);
+    trace_kernels().intersect(t, rays.data(), got.data(), rays.size(), true);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(std::memcmp(&ref[i], &got[i], sizeof(RayHit)), 0)
+          << "eye " << o.footprint_eye.x << " pixels " << o.footprint_pixels << " slope " << o.pixel_slope << ": "
+          << test::describe_ray(rays[i]);
+    }
   }
 }
 
