@@ -166,12 +166,14 @@ float scaled_area(const Aabb& box, float scale) {
 
 // What the SAH takes of a node besides its box: with a view-aware SAH (KdBuildOptions::
 // footprint_pixels F > 0, a node of at most footprint_max_refs references) the lengths
-// footprint_length adds to its extents, `cap` and `grow`, and 1 / its area with them added.
-// Otherwise `grow` is 0, and every length and the area are the plain SAH's to the bit.
+// footprint_length adds to its extents, `cap` and `grow`; its extents in the SAH's scaled
+// lengths with them added, and 1 / its area from those. Otherwise `grow` is 0, and every length
+// and the area are the plain SAH's to the bit.
 struct SahFrame {
   float inv_area = 0.0f;
   float cap = 0.0f;
   float grow = 0.0f;
+  glm::vec3 extent{0.0f};
 };
 
 // A length `x` of a box as the view-aware SAH counts it: x + grow min(x, cap). With cap an
@@ -197,7 +199,8 @@ SahFrame sah_frame(const BuildContext& ctx, const Aabb& box, std::size_t count) 
     const float cap = static_cast<float>(static_cast<double>(ctx.pixel_slope) * glm::length(d) / kFootprintSteps);
     if (std::isfinite(cap)) f.cap = cap, f.grow = ctx.footprint_grow;  // an eye too far: the plain SAH
   }
-  glm::vec3 e = box.extent() * ctx.sah_scale;
+  glm::vec3& e = f.extent;
+  e = box.extent() * ctx.sah_scale;
   for (int a = 0; a < 3; ++a) e[a] = footprint_length(e[a], f.cap, f.grow);
   f.inv_area = 1.0f / (2.0f * (e.x * e.y + e.y * e.z + e.z * e.x));
   return f;
@@ -208,14 +211,13 @@ SahFrame sah_frame(const BuildContext& ctx, const Aabb& box, std::size_t count) 
 // perimeter of that cross-section.
 class SahAxis {
  public:
-  // With a footprint every length is footprint_length's (the cut length's too, in cost()).
+  // With a footprint every length is footprint_length's: the cross-section's from the frame, the
+  // cut length's in cost().
   SahAxis(const KdBuildOptions& options, const Aabb& box, int axis, const SahFrame& frame, float scale)
       : lo_(box.lo[axis]), hi_(box.hi[axis]), k_t_(options.traversal_cost),
         k_i_(options.intersection_cost * frame.inv_area), bonus_(1.0f - options.empty_bonus), scale_(scale),
         cap_(frame.cap), grow_(frame.grow) {
-    const glm::vec3 e = box.extent() * scale;
-    const float du = footprint_length(e[(axis + 1) % 3], cap_, grow_);
-    const float dv = footprint_length(e[(axis + 2) % 3], cap_, grow_);
+    const float du = frame.extent[(axis + 1) % 3], dv = frame.extent[(axis + 2) % 3];
     cross_ = du * dv;
     perimeter_ = du + dv;
   }
@@ -996,6 +998,56 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   return ev[first].pos;
 }
 
+// SahAxis::cost for 16 candidate planes at once, its float operations in its order (so the
+// same bits): each plane's cost with its planar references on the left, (left_planar, right),
+// and on the right, (left, right_planar), and the cheaper where `has_planar` (ties to the left);
+// `planar_left` gets the lanes that put them on the left. The counts as floats (the two callers
+// hold them as 32- or 64-bit integers). Shared by the event sweep (best_on_axis_avx512) and the
+// bit-mask stage's plane scan (scan_planes_avx512), as SahCosts8 is by their AVX2 forms.
+struct SahCosts16 {
+  __m512 lo, hi, scale, perimeter, cross, cap, grow, two, k_t, k_i, bonus, zero;
+
+  [[gnu::target("avx512f")]] explicit SahCosts16(const SahAxis& sah)
+      : lo(_mm512_set1_ps(sah.lo_)),
+        hi(_mm512_set1_ps(sah.hi_)),
+        scale(_mm512_set1_ps(sah.scale_)),
+        perimeter(_mm512_set1_ps(sah.perimeter_)),
+        cross(_mm512_set1_ps(sah.cross_)),
+        cap(_mm512_set1_ps(sah.cap_)),
+        grow(_mm512_set1_ps(sah.grow_)),
+        two(_mm512_set1_ps(2.0f)),
+        k_t(_mm512_set1_ps(sah.k_t_)),
+        k_i(_mm512_set1_ps(sah.k_i_)),
+        bonus(_mm512_set1_ps(sah.bonus_)),
+        zero(_mm512_setzero_ps()) {}
+
+  [[gnu::target("avx512f")]] __m512 cost(__m512 pos, __m512 left_planar, __m512 right, __m512 left,
+                                         __m512 right_planar, __mmask16 has_planar, __mmask16& planar_left) const {
+    const __m512 area_left = _mm512_mul_ps(
+        two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, lo), scale), cap,
+                                                                   grow),
+                                                perimeter)));
+    const __m512 area_right = _mm512_mul_ps(
+        two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(hi, pos), scale), cap,
+                                                                   grow),
+                                                perimeter)));
+    const __m512 cost_left = with_bonus(area_left, area_right, left_planar, right);
+    const __m512 cost_right =
+        _mm512_mask_blend_ps(has_planar, cost_left, with_bonus(area_left, area_right, left, right_planar));
+    planar_left = _mm512_cmp_ps_mask(cost_left, cost_right, _CMP_LE_OQ);
+    return _mm512_mask_blend_ps(planar_left, cost_right, cost_left);
+  }
+
+ private:
+  // k_t + k_i (area_left a + area_right b), times the empty-space bonus where a or b is 0.
+  [[gnu::target("avx512f")]] __m512 with_bonus(__m512 area_left, __m512 area_right, __m512 a, __m512 b) const {
+    const __m512 c =
+        _mm512_add_ps(k_t, _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, a), _mm512_mul_ps(area_right, b))));
+    const __mmask16 empty_side = _mm512_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
+    return _mm512_mask_mul_ps(c, empty_side, c, bonus);
+  }
+};
+
 // sweep_groups 16 events at a time. An event ends its group where the next event's position
 // differs. Prefix sums over the 16 count the starts and planars before each event (what
 // n_left will be) and the ends and planars up to it (what n_right loses); a running maximum
@@ -1013,12 +1065,7 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   const __m512i zero_i = _mm512_setzero_si512(), one = _mm512_set1_epi32(1), three = _mm512_set1_epi32(3);
   const __m512i end_type = _mm512_set1_epi32(kEnd), planar_type = _mm512_set1_epi32(kPlanar);
   const __m512i start_type = _mm512_set1_epi32(kStart), low10 = _mm512_set1_epi32(0x3FF);
-  const __m512 box_lo = _mm512_set1_ps(sah.lo_), box_hi = _mm512_set1_ps(sah.hi_);
-  const __m512 scale = _mm512_set1_ps(sah.scale_), perimeter = _mm512_set1_ps(sah.perimeter_);
-  const __m512 cross = _mm512_set1_ps(sah.cross_), two = _mm512_set1_ps(2.0f);
-  const __m512 cap = _mm512_set1_ps(sah.cap_), grow = _mm512_set1_ps(sah.grow_);
-  const __m512 k_t = _mm512_set1_ps(sah.k_t_), k_i = _mm512_set1_ps(sah.k_i_), bonus = _mm512_set1_ps(sah.bonus_);
-  const __m512 zero = _mm512_setzero_ps();
+  const SahCosts16 costs16(sah);
   const float nan_value = std::numeric_limits<float>::quiet_NaN();
   const __m512 nan = _mm512_set1_ps(nan_value);
   // Running counts before the 16: starts and planars (n_left), planars, and n_right less the
@@ -1079,34 +1126,14 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
     const __m512i left = gl;                                    // n_left before the group
     const __m512i planar = _mm512_sub_epi32(planar_incl, gp);   // the group's planars (at its end)
     const __m512i right = _mm512_sub_epi32(_mm512_set1_epi32(right_base), ep_incl);  // n_right after it
-    const __mmask16 inside = group_end & _mm512_cmp_ps_mask(pos, box_lo, _CMP_GT_OQ) &
-                             _mm512_cmp_ps_mask(pos, box_hi, _CMP_LT_OQ);
+    const __mmask16 inside = group_end & _mm512_cmp_ps_mask(pos, costs16.lo, _CMP_GT_OQ) &
+                             _mm512_cmp_ps_mask(pos, costs16.hi, _CMP_LT_OQ);
     if (inside != 0) {
-      const __mmask16 has_planar = _mm512_test_epi32_mask(planar, planar);
-      const __m512 area_left = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale),
-                                                                     cap, grow),
-                                                  perimeter)));
-      const __m512 area_right = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale),
-                                                                     cap, grow),
-                                                  perimeter)));
-      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
-      __m512 na = _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar));
-      __m512 nb = _mm512_maskz_cvtepi32_ps(0xFFFF, right);
-      __m512 c = _mm512_add_ps(
-          k_t, _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, na), _mm512_mul_ps(area_right, nb))));
-      __mmask16 empty_side = _mm512_cmp_ps_mask(na, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(nb, zero, _CMP_EQ_OQ);
-      const __m512 cost_left = _mm512_mask_mul_ps(c, empty_side, c, bonus);
-      na = _mm512_maskz_cvtepi32_ps(0xFFFF, left);
-      nb = _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar));
-      c = _mm512_add_ps(k_t,
-                        _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, na), _mm512_mul_ps(area_right, nb))));
-      empty_side = _mm512_cmp_ps_mask(na, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(nb, zero, _CMP_EQ_OQ);
-      const __m512 cost_right =
-          _mm512_mask_blend_ps(has_planar, cost_left, _mm512_mask_mul_ps(c, empty_side, c, bonus));
-      const __mmask16 planar_left = _mm512_cmp_ps_mask(cost_left, cost_right, _CMP_LE_OQ);
-      const __m512 cost = _mm512_mask_blend_ps(planar_left, cost_right, cost_left);
+      __mmask16 planar_left;
+      const __m512 cost = costs16.cost(pos, _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar)),
+                                       _mm512_maskz_cvtepi32_ps(0xFFFF, right), _mm512_maskz_cvtepi32_ps(0xFFFF, left),
+                                       _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar)),
+                                       _mm512_test_epi32_mask(planar, planar), planar_left);
       const __mmask16 better = inside & _mm512_cmp_ps_mask(cost, _mm512_set1_ps(best.cost), _CMP_LT_OQ);
       if (better != 0) {
         alignas(64) float costs[16];
@@ -1409,12 +1436,7 @@ template <int W>
   __m512i m[W];
   for (int w = 0; w < W; ++w) m[w] = _mm512_set1_epi64(static_cast<long long>(mask.w[w]));
   const __m512 v_hi = _mm512_set1_ps(hi);
-  const __m512 box_lo = _mm512_set1_ps(sah.lo_), box_hi = _mm512_set1_ps(sah.hi_);
-  const __m512 scale = _mm512_set1_ps(sah.scale_), perimeter = _mm512_set1_ps(sah.perimeter_);
-  const __m512 cross = _mm512_set1_ps(sah.cross_), two = _mm512_set1_ps(2.0f);
-  const __m512 cap = _mm512_set1_ps(sah.cap_), grow = _mm512_set1_ps(sah.grow_);
-  const __m512 k_t = _mm512_set1_ps(sah.k_t_), k_i = _mm512_set1_ps(sah.k_i_), bonus = _mm512_set1_ps(sah.bonus_);
-  const __m512 zero = _mm512_setzero_ps();
+  const SahCosts16 costs16(sah);
   // A mask of 16 planes from two of 8: planes i..i+7 in the low byte.
   const auto joined = [](__mmask8 low, __mmask8 high) {
     return static_cast<__mmask16>(static_cast<unsigned>(low) | (static_cast<unsigned>(high) << 8));
@@ -1437,29 +1459,12 @@ template <int W>
       const __m512i planar_high = mask_counts<W>(planes.planar, i + 8, m);
       const __mmask16 has_planar =
           joined(_mm512_test_epi64_mask(planar_low, planar_low), _mm512_test_epi64_mask(planar_high, planar_high));
-      const __m512 area_left = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, box_lo), scale),
-                                                                     cap, grow),
-                                                  perimeter)));
-      const __m512 area_right = _mm512_mul_ps(
-          two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(box_hi, pos), scale),
-                                                                     cap, grow),
-                                                  perimeter)));
-      // SahAxis::cost(pos, a, b) for (a, b) = (left + planar, right) and (left, right + planar).
-      __m512 a = counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high));
-      __m512 b = counts_as_floats(right_low, right_high);
-      __m512 c = _mm512_add_ps(
-          k_t, _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, a), _mm512_mul_ps(area_right, b))));
-      __mmask16 empty_side = _mm512_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
-      const __m512 cost_left = _mm512_mask_mul_ps(c, empty_side, c, bonus);
-      a = counts_as_floats(left_low, left_high);
-      b = counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high));
-      c = _mm512_add_ps(k_t,
-                        _mm512_mul_ps(k_i, _mm512_add_ps(_mm512_mul_ps(area_left, a), _mm512_mul_ps(area_right, b))));
-      empty_side = _mm512_cmp_ps_mask(a, zero, _CMP_EQ_OQ) | _mm512_cmp_ps_mask(b, zero, _CMP_EQ_OQ);
-      const __m512 cost_right = _mm512_mask_blend_ps(has_planar, cost_left, _mm512_mask_mul_ps(c, empty_side, c, bonus));
-      const __mmask16 planar_left = _mm512_cmp_ps_mask(cost_left, cost_right, _CMP_LE_OQ);
-      const __m512 best = _mm512_mask_blend_ps(planar_left, cost_right, cost_left);
+      __mmask16 planar_left;
+      const __m512 best = costs16.cost(
+          pos, counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high)),
+          counts_as_floats(right_low, right_high), counts_as_floats(left_low, left_high),
+          counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high)),
+          has_planar, planar_left);
       unsigned better = valid & _mm512_cmp_ps_mask(best, _mm512_set1_ps(split.cost), _CMP_LT_OQ);
       if (better != 0) {
         alignas(64) float costs[16], at[16];
