@@ -17,7 +17,6 @@
 #include "common/base/error.h"
 #include "common/base/progress.h"
 #include "common/base/timer.h"
-#include "common/math/det_math.h"
 #include "common/render/render_kernels.h"
 
 namespace rtc {
@@ -268,11 +267,11 @@ bool kd_clip_for(const Scene& scene, KdClip clip) {
   return kd_clip_for(clip, std::find(moving.begin(), moving.end(), true) != moving.end());
 }
 
-void aim_kd_build(KdBuildOptions& kd, const Camera& camera, int height) {
-  // det_tan as CameraRays: every worker builds the same tree.
-  const double h = det_tan(static_cast<double>(camera.vfov_deg) * (3.14159265358979323846 / 180.0) / 2.0);
-  kd.pixel_slope = height > 0 && std::isfinite(h) ? static_cast<float>(2.0 * h / height) : 0.0f;
-  kd.footprint_eye = camera.eye;
+void aim_kd_build(KdBuildOptions& kd, const CameraRays& rays) {
+  // A row's step on the image plane at unit distance, as the rays are made (image_b is affine).
+  const double slope = rays.image_b(0.0) - rays.image_b(1.0);
+  kd.pixel_slope = std::isfinite(slope) && slope > 0.0 ? static_cast<float>(slope) : 0.0f;
+  kd.footprint_eye = glm::vec3(rays.eye());
 }
 
 std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, const RenderSettings& settings,
@@ -282,7 +281,7 @@ std::shared_ptr<FrameState> build_frame_state(const Scene& scene, int frame, con
   auto geometry = std::make_shared<FrameGeometry>();
   flatten(scene, pose, *geometry);
   KdBuildOptions tree_options = kd;
-  aim_kd_build(tree_options, fs->camera, fs->height);
+  aim_kd_build(tree_options, fs->camera_rays);
   tree_options.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
   geometry->trees.push_back(
       std::make_shared<const KdTree>(KdTree::build(geometry->positions, geometry->triangles, tree_options)));
@@ -332,7 +331,7 @@ std::shared_ptr<const FrameState> Renderer::prepare(int frame) {
   const double flatten_ms = flatten_timer.elapsed_ms();
 
   KdBuildOptions kd = options_.kd;
-  aim_kd_build(kd, fs->camera, fs->height);
+  aim_kd_build(kd, fs->camera_rays);
   kd.watertight = settings.intersector == Intersector::Watertight;  // the setting decides
   Timer build_timer;
   int built = 0;

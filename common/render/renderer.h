@@ -115,9 +115,9 @@ class Renderer {
 /// without RenderOptions::split_static_trees use.
 [[nodiscard]] bool kd_clip_for(const Scene& scene, KdClip clip);
 
-/// Points `kd`'s view-aware SAH at `camera` for a `height`-pixel image (KdBuildOptions::
-/// footprint_eye and pixel_slope; footprint_pixels says whether it is used).
-void aim_kd_build(KdBuildOptions& kd, const Camera& camera, int height);
+/// Points `kd`'s view-aware SAH at the camera `rays` are made from (KdBuildOptions::footprint_eye,
+/// and pixel_slope: a pixel's height at unit distance; footprint_pixels says whether it is used).
+void aim_kd_build(KdBuildOptions& kd, const CameraRays& rays);
 
 /// The box every primary ray that can hit anything passes through: the union of the bounds of
 /// the frame's kd-trees (KdTree::bounds(), or TreeSpace::world_bounds for a tree in object
