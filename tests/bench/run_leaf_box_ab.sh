@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Leaf boxes (KdBuildOptions::leaf_box_saving), or with AB_OPTION=kd-empty-cut the empty-gap cut
 # (KdBuildOptions::empty_cut), or with AB_OPTION=kd-exact-below the size of the exact sweep's
-# blocks (KdBuildOptions::exact_below), or with AB_OPTION=kd-footprint the view-aware SAH's
-# packet width in pixels (KdBuildOptions::footprint_pixels), at two values on every view of the shared scene pack, in
-# one process per view: rtc-bench builds a tree with each value and times both trees' packets
-# and single rays rep by rep (--ab-kd-leaf-box-saving / --ab-kd-empty-cut /
-# --ab-kd-exact-below / --ab-kd-footprint), so a slow spell of the machine falls on both alike, and checks that
-# both trees give the same answers. Writes
+# blocks (KdBuildOptions::exact_below), or with AB_OPTION=kd-footprint the pixels the view-aware
+# SAH adds to a small node's lengths (KdBuildOptions::footprint_pixels), at two values on every
+# view of the shared scene pack, in one process per view: rtc-bench builds a tree with each
+# value and times both trees' packets and single rays rep by rep (--ab-kd-leaf-box-saving /
+# --ab-kd-empty-cut / --ab-kd-exact-below / --ab-kd-footprint), so a slow spell of the machine
+# falls on both alike, and checks that both trees give the same answers. Writes
 # tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
 # (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
 # first's, paired rep by rep).

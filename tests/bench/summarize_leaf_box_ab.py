@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
---ab-kd-leaf-box-saving, --ab-kd-empty-cut, --ab-kd-exact-below or --ab-kd-footprint, whichever the two trees
-differ in), with the medians over the views.
+--ab-kd-leaf-box-saving, --ab-kd-empty-cut, --ab-kd-exact-below or --ab-kd-footprint,
+whichever the two trees differ in), with the medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
 import statistics
