@@ -60,6 +60,20 @@ const RenderKernels& render_kernels(Isa isa) {
 
 namespace {
 
+// fn(begin, end) over [0, n) in ranges of at least kFlattenGrain elements, in parallel: each
+// element is written once from its own inputs, so the arrays are the same whatever the split.
+// A million-triangle scene's flattening took ~10 ms on one thread, 2% of its kd-tree build.
+constexpr std::size_t kFlattenGrain = 16384;
+template <class Fn>
+void for_ranges(std::size_t n, Fn&& fn) {
+  if (n <= kFlattenGrain) {
+    fn(std::size_t{0}, n);
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kFlattenGrain),
+                    [&](const tbb::blocked_range<std::size_t>& r) { fn(r.begin(), r.end()); });
+}
+
 // World-space positions and normals of one mesh placed by `world_from_object`, written from
 // g.positions[v_base] on. Transforms are applied in double and rounded once, so an identity
 // placement reproduces the file's coordinates exactly and a placement gives the same bits
@@ -69,15 +83,17 @@ void place_mesh(const Mesh& m, const glm::mat4& world_from_object, std::size_t v
   const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
   const bool identity = world == glm::dmat4(1.0);
   const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
-  for (std::size_t i = 0; i < m.positions.size(); ++i) {
-    g.positions[v_base + i] =
-        identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
-    if (has_normals) {
-      const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
-      const double len = glm::length(n);
-      g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+  for_ranges(m.positions.size(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      g.positions[v_base + i] =
+          identity ? m.positions[i] : glm::vec3(world * glm::dvec4(glm::dvec3(m.positions[i]), 1.0));
+      if (has_normals) {
+        const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
+        const double len = glm::length(n);
+        g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+      }
     }
-  }
+  });
 }
 
 // World-space geometry of all meshes at one pose, in mesh order: triangle i of the arrays is
@@ -100,14 +116,16 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
     const Mesh& m = scene.meshes[mi];
     place_mesh(m, pose.world_from_object.at(mi), v_base, g);
     const bool has_normals = m.normals.size() == m.positions.size() && !m.normals.empty();
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      g.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
-      const std::uint32_t mat = t < m.material_ids.size() ? m.material_ids[t] : 0u;
-      g.material_ids[t_base + t] = mat < scene.materials.size() ? mat : 0u;
-      g.smooth[t_base + t] = has_normals ? 1 : 0;
-      const std::uint64_t src = t < m.source_index.size() ? m.source_index[t] : t;
-      g.source_index[t_base + t] = static_cast<std::uint32_t>(source_base + src);
-    }
+    for_ranges(m.triangles.size(), [&](std::size_t begin, std::size_t end) {
+      for (std::size_t t = begin; t < end; ++t) {
+        g.triangles[t_base + t] = m.triangles[t] + glm::uvec3(static_cast<unsigned>(v_base));
+        const std::uint32_t mat = t < m.material_ids.size() ? m.material_ids[t] : 0u;
+        g.material_ids[t_base + t] = mat < scene.materials.size() ? mat : 0u;
+        g.smooth[t_base + t] = has_normals ? 1 : 0;
+        const std::uint64_t src = t < m.source_index.size() ? m.source_index[t] : t;
+        g.source_index[t_base + t] = static_cast<std::uint32_t>(source_base + src);
+      }
+    });
     source_base += m.triangles.size() + m.dropped_degenerate;
     v_base += m.positions.size();
     t_base += m.triangles.size();
