@@ -307,6 +307,8 @@ int run(int argc, char** argv) {
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
       ->check(CLI::Range(-1, 256))
       ->capture_default_str();
+  int ab_mask_below = -2;  // -1 is a value (the default's rule)
+  app.add_option("--ab-kd-mask-below", ab_mask_below, ab_help("mask-below"))->check(CLI::Range(-1, 256));
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
   int width = 0, height = 0;
@@ -350,7 +352,8 @@ int run(int argc, char** argv) {
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =
-      ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_footprint >= 0.0f;
+      ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_footprint >= 0.0f ||
+      ab_mask_below >= -1;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -448,6 +451,7 @@ int run(int argc, char** argv) {
   if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
   if (ab_exact_below >= 0) ab_options.exact_below = ab_exact_below;
   if (ab_footprint >= 0.0f) ab_options.footprint_pixels = ab_footprint;
+  if (ab_mask_below >= -1) ab_options.mask_below = ab_mask_below;
   if (ab_tree) {
     fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
@@ -648,6 +652,7 @@ int run(int argc, char** argv) {
                      {"kd_empty_cut", ab_options.empty_cut},
                      {"kd_exact_below", ab_options.exact_below},
                      {"kd_footprint", ab_options.footprint_pixels},
+                     {"kd_mask_below", ab_options.effective_mask_below()},
                      {"kd_nodes", kd_ab.nodes},
                      {"build_ms", kd_ab.build_ms},
                      {"kd_sah_cost", kd_ab.sah_cost},
@@ -659,11 +664,13 @@ int run(int argc, char** argv) {
                      {"answers_differ", differ}};
         ab_differ = ab_differ || differ != 0;
         if (!json) {
-          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d: packets %.2f M "
-                      "rays/s (%.3fx the first tree's, paired), single rays %.2f (%.3fx)%s\n",
+          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d --kd-footprint %g "
+                      "--kd-mask-below %d: packets %.2f M rays/s (%.3fx the first tree's, paired), single rays %.2f "
+                      "(%.3fx)%s\n",
                       mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
-                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below, mrays, packet_ratio,
-                      mrays_single, single_ratio, differ != 0 ? ", ANSWERS DIFFER" : "");
+                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below,
+                      static_cast<double>(ab_options.footprint_pixels), ab_options.effective_mask_below(), mrays,
+                      packet_ratio, mrays_single, single_ratio, differ != 0 ? ", ANSWERS DIFFER" : "");
         }
       }
 
