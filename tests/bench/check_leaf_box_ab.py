@@ -6,11 +6,12 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - the first tree has no boxes, the second has some, and the two gave the same answers;
   - both trees' throughputs and the paired ratios are positive and finite;
   - summarize_leaf_box_ab.py tabulates the lines.
-Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once) and
-for --ab-kd-exact-below (the exact sweep below 4096 references against below 512, so more
-levels binned): the two trees' options are recorded, the trees differ, they give the same
-answers, the figures (for the threshold both trees' SAH costs too) are finite and the summary
-tabulates them.
+Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once),
+--ab-kd-exact-below (the exact sweep below 4096 references against below 512, so more levels
+binned), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
+event sweep down to the leaves against bit masks below 128 references): the two trees' options
+are recorded, the trees differ, they give the same answers, the figures (for the last three
+both trees' SAH costs too) are finite and the summary tabulates them.
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
@@ -83,10 +84,27 @@ def exact_below(r, ab, mode):
           f"{mode}: SAH costs {r.get('kd_sah_cost')} and {ab.get('kd_sah_cost')}")
 
 
+def other_tree(key, first, second):
+    """A check_row for an option `key` given as `first` and `second`: recorded, and the trees
+    differ (node counts) with finite SAH costs."""
+    def check_row(r, ab, mode):
+        check(r.get(key) == first and ab.get(key) == second,
+              f"{mode}: {key} {r.get(key)} and {ab.get(key)}, expected {first} and {second}")
+        check(isinstance(ab.get("kd_nodes"), int) and ab["kd_nodes"] > 0, f"{mode}: ab.kd_nodes = {ab.get('kd_nodes')}")
+        check(ab.get("kd_nodes") != r.get("kd_nodes"), f"{mode}: both trees have {r.get('kd_nodes')} nodes")
+        check(finite_positive(r.get("kd_sah_cost")) and finite_positive(ab.get("kd_sah_cost")),
+              f"{mode}: SAH costs {r.get('kd_sah_cost')} and {ab.get('kd_sah_cost')}")
+    return check_row
+
+
 def main(bench):
     run_ab(bench, 4, ["--kd-leaf-box-saving", "0", "--ab-kd-leaf-box-saving", "0.000001"], "boxes (1e-06)", leaf_boxes)
     run_ab(bench, 3, ["--kd-empty-cut", "2", "--ab-kd-empty-cut", "0"], "nodes (2 → 0)", empty_cuts)
     run_ab(bench, 3, ["--kd-exact-below", "4096", "--ab-kd-exact-below", "512"], "nodes (4096 → 512)", exact_below)
+    run_ab(bench, 3, ["--kd-footprint", "0", "--ab-kd-footprint", "2"], "nodes (0 → 2)",
+           other_tree("kd_footprint", 0, 2))
+    run_ab(bench, 3, ["--kd-mask-below", "0", "--ab-kd-mask-below", "128"], "nodes (0 → 128)",
+           other_tree("kd_mask_below", 0, 128))
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
 
