@@ -4,7 +4,8 @@
 One table per scene (as the tracer issue's closing note asks): triangles, build time (rtc vs
 Embree), primary and shadow M rays/s for each rtc ISA and each Embree mode, the ratio to
 Embree's best, and full-frame ms beside the Embree renderer with the same shading. A summary
-table of the ratios over all scenes comes first.
+table of the ratios over all scenes comes first, then the issue's targets: on how many rows each
+holds and where it does not.
 
 Lines carry the sweep they came from ("run", run_shared_scenes.sh's RUNS; lines without one are
 one run). Each figure is the median over the runs of that scene, thread count and mode (each
@@ -76,6 +77,49 @@ def span(runs, mode):
     return f" ({min(values):.2f}-{max(values):.2f})"
 
 
+# The tracer issue's targets, checked row by row: (name, the rows' value, whether it meets the
+# target, how the value prints). A build's s/M is the 2-thread row's (the issue's 2-core
+# machine); the rest hold at 1 and 2 threads.
+def seconds_per_million(row):
+    tris = row.get("triangles", 0)
+    return row.get("build_ms", 0) / 1e3 / tris * 1e6 if tris else None
+
+
+TARGETS = (
+    ("primary rays at least 1.0x Embree's fastest mode", "primary", lambda r: ratio(r, "primary"),
+     lambda v: v >= 1.0, "{:.2f}x", (1, 2)),
+    ("shadow rays at least 1.0x Embree's fastest occlusion mode", "shadow", lambda r: ratio(r, "shadow"),
+     lambda v: v >= 1.0, "{:.2f}x", (1, 2)),
+    ("full Whitted frame faster than the Embree renderer", "full", lambda r: ratio(r, "full"),
+     lambda v: v > 1.0, "{:.2f}x", (1, 2)),
+    ("build at most 0.5 s per million triangles (2 threads)", "primary", seconds_per_million,
+     lambda v: v <= 0.5, "{:.3f} s/M", (2,)),
+    ("build within 2x Embree's high-quality build", "primary", build_ratio, lambda v: v <= 2.0, "{:.2f}x", (1, 2)),
+)
+
+
+def print_targets(by, scenes):
+    """Per target: on how many of the rows it holds, and the rows where it does not."""
+    print("## Targets\n")
+    print("| target | met | missed (scene, threads: value) |")
+    print("|---|---:|---|")
+    for name, mode, value, ok, text, threads in TARGETS:
+        met, total, missed = 0, 0, []
+        for scene in scenes:
+            for thr in threads:
+                row = by.get((scene, thr), {}).get(mode)
+                v = value(row) if row else None
+                if v is None:
+                    continue
+                total += 1
+                if ok(v):
+                    met += 1
+                else:
+                    missed.append(f"{scene}, {thr}: {text.format(v)}")
+        print(f"| {name} | {met} of {total} | {'; '.join(missed) if missed else 'none'} |")
+    print()
+
+
 def main(path):
     rows = [json.loads(line) for line in open(path) if line.strip()]
     grouped = defaultdict(list)
@@ -138,6 +182,7 @@ def main(path):
                   f'{f.get("frame_ms", 0):.0f} | {f.get("embree_frame_ms", 0):.0f} | '
                   f'**{fmt(ratio(f, "full"))}**{spans.get((scene, thr, "full"), "")} |')
     print()
+    print_targets(by, scenes)
     for scene in scenes:
         first = next(by[k] for k in sorted(by) if k[0] == scene)["primary"]
         print(f"## {scene}\n")
