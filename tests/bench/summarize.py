@@ -173,7 +173,7 @@ def main(path):
             tris = p.get("triangles", 0)
             build = p.get("build_ms", 0)
             hq = p.get("embree_build_hq_ms", 0)
-            print(f'| {scene} | {tris:,} | {thr} | {build:.0f} | {build / 1e3 / max(tris, 1) * 1e6:.2f} | {hq:.0f} | '
+            print(f'| {scene} | {tris:,} | {thr} | {build:.0f} | {fmt(seconds_per_million(p))} | {hq:.0f} | '
                   f'{fmt(build_ratio(p))} | {p.get("mrays_per_s", 0):.2f} | {fmt(p.get("mrays_per_s_refined"))} | '
                   f'{p.get("embree_best_mrays_per_s", 0):.2f} | '
                   f'**{fmt(ratio(p, "primary"))}**{spans.get((scene, thr, "primary"), "")} | '
