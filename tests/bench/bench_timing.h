@@ -53,13 +53,20 @@ struct Contender {
 /// Times the contenders in turn, one call each per round, for `rounds` rounds, so that a slow
 /// spell of a shared machine (seconds long on the VMs this runs on) falls on all of them alike
 /// instead of on whichever was timed during it. Returns each contender's times in ms by round.
-inline std::vector<std::vector<double>> time_rounds_ms(int rounds, const std::vector<Contender>& contenders) {
+/// `min_first_ms` (> 0): after `rounds`, rounds go on until the first contender's times add up
+/// to at least that, up to `max_rounds` in all: a build of a few milliseconds timed 5 times
+/// gives a median of 5 samples, each taken right after the other contenders' work has evicted
+/// its caches, where one of a second is timed as long as 5 rounds take anyway.
+inline std::vector<std::vector<double>> time_rounds_ms(int rounds, const std::vector<Contender>& contenders,
+                                                       double min_first_ms = 0.0, int max_rounds = 0) {
   std::vector<std::vector<double>> ms(contenders.size());
-  for (int r = 0; r < rounds; ++r) {
+  double first_total = 0.0;
+  for (int r = 0; r < rounds || (first_total < min_first_ms && r < max_rounds); ++r) {
     for (std::size_t c = 0; c < contenders.size(); ++c) {
       if (contenders[c].rounds > 0 && r >= contenders[c].rounds) continue;
       contenders[c].untimed();
       ms[c].push_back(time_once_ms(contenders[c].fn));
+      if (c == 0) first_total += ms[c].back();
     }
   }
   return ms;

@@ -145,7 +145,7 @@ def main(path):
     cpu = any_row.get("cpu", "AMD EPYC")
     print(f"Regenerate with `{command}` (one command; 2-core {cpu} with {vector}, Debian 12, "
           f"Embree 3.13.5 from Debian using {embree_isa}). Figures are medians over the reps "
-          f"({any_row['reps']} here), then over {runs} run{'s' if runs > 1 else ''} of the whole sweep "
+          f"({any_row['reps']} here; builds of a few ms take more rounds, up to 100, until rtc's add up to half a second), then over {runs} run{'s' if runs > 1 else ''} of the whole sweep "
           "(the ratios: medians of each run's ratios, with their range over the runs in brackets in the summary). "
           "Throughput in M rays/s. rtc's headline figure is its best ISA "
           f"({any_row['isa']}); ratio = that / Embree's fastest mode. "
