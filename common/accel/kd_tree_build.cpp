@@ -433,6 +433,20 @@ Aabb clipped_bounds(const BuildContext& ctx, std::uint32_t tri, const Aabb& box,
   return clip.bounds(clamped);
 }
 
+// Asks for what clipped_bounds() reads of triangle `tri`: its box, its vertex indices and,
+// `vertices`, its vertices (which need the indices: callers ask for those further ahead).
+// The build walks a node's references in order, but their triangles lie anywhere in the
+// scene's arrays, and each read waited on memory (spd-mount-s10: 2.1 M triangles).
+inline void prefetch_triangle(const BuildContext& ctx, std::uint32_t tri, bool vertices) {
+  __builtin_prefetch(&ctx.tri_box[tri]);
+  if (!vertices) {
+    __builtin_prefetch(&ctx.triangles[tri]);
+    return;
+  }
+  const glm::uvec3 idx = ctx.triangles[tri];
+  for (int k = 0; k < 3; ++k) __builtin_prefetch(&ctx.positions[idx[k]]);
+}
+
 // A subtree swept exactly, laid out as the final tree will be (children adjacent, depth
 // first, left before right) but with node and reference indices local to the block.
 struct Block {
@@ -1883,6 +1897,10 @@ class MaskBuilder {
 // other threads have nothing to do.
 constexpr std::size_t kSideBySideSetUp = 1024;
 
+// How far ahead a block's loops over triangles to clip ask for their vertices (and twice as far
+// for their boxes and vertex indices): prefetch_triangle.
+constexpr std::size_t kTriAhead = 8;
+
 // A sort buffer per thread, for the event lists such a block makes side by side.
 std::vector<Event>& tl_sort_buffer() {
   thread_local std::vector<Event> buffer;
@@ -1907,6 +1925,8 @@ class BlockBuilder {
     bounds.resize(n);
     const auto clip_range = [&](std::size_t from, std::size_t to) {
       for (std::size_t i = from; i < to; ++i) {
+        if (i + 2 * kTriAhead < to) prefetch_triangle(ctx_, tris_[i + 2 * kTriAhead], false);
+        if (ctx_.clip && i + kTriAhead < to) prefetch_triangle(ctx_, tris_[i + kTriAhead], true);
         const Aabb& t = ctx_.tri_box[tris_[i]];
         bounds[i] = signless(ctx_.clip ? clipped_bounds(ctx_, tris_[i], box, t) : clamp_box(t, box));
       }
@@ -2118,6 +2138,8 @@ class BlockBuilder {
     // The triangle is clipped to the node once; one more step splits the polygon in two.
     TriangleClip& clip = s_.clip;
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
+      if (k + 2 * kTriAhead < straddlers.size()) prefetch_triangle(ctx_, tris_[straddlers[k + 2 * kTriAhead]], false);
+      if (k + kTriAhead < straddlers.size()) prefetch_triangle(ctx_, tris_[straddlers[k + kTriAhead]], true);
       const std::uint32_t tri = tris_[straddlers[k]];
       const Aabb& current = bounds[straddlers[k]];
       const Aabb left_clamped = clamp_box(current, left_box);
@@ -2444,6 +2466,11 @@ class TopBuilder {
   // down to this size.)
   static constexpr std::size_t kParallelSubtree = 1024;
 
+  // The binning, refinement and partition loops read the boxes of a node's references,
+  // scattered over the scene's array (24 bytes each, 50 MB for spd-mount-s10), one after another:
+  // each loop asks for the box this many references ahead.
+  static constexpr std::size_t kBoxAhead = 32;
+
   struct Bins {
     std::uint32_t start[3][kMaxBins];  // references whose (clamped) lower bound is in the bin
     std::uint32_t end[3][kMaxBins];    // ... whose upper bound is in the bin
@@ -2469,17 +2496,38 @@ class TopBuilder {
     const std::size_t n = tris.size();
     const std::size_t chunks = chunk_count(n);
     std::vector<Bins> per_chunk(chunks);
+    // Neighbouring references mostly fall into the same bins, and an increment of the bin the
+    // one before just incremented waits for that store: references alternate between two sets
+    // of counts, added up at the end.
     auto count = [&](std::size_t c) {
       Bins& b = per_chunk[c];
+      Bins odd;
       std::memset(&b, 0, sizeof(Bins));
-      const std::size_t end = std::min(n, (c + 1) * (n / chunks + 1));
-      for (std::size_t i = c * (n / chunks + 1); i < end; ++i) {
+      std::memset(&odd, 0, sizeof(Bins));
+      const auto add = [&](Bins& to, std::size_t i) {
         const Aabb& t = ctx_.tri_box[tris[i]];
         for (int axis = 0; axis < 3; ++axis) {
           const float lo = std::max(t.lo[axis], box.lo[axis]) - box.lo[axis];
           const float hi = std::min(t.hi[axis], box.hi[axis]) - box.lo[axis];
-          ++b.start[axis][std::min(static_cast<int>(lo * scale[axis]), bins - 1)];
-          ++b.end[axis][std::min(static_cast<int>(hi * scale[axis]), bins - 1)];
+          ++to.start[axis][std::min(static_cast<int>(lo * scale[axis]), bins - 1)];
+          ++to.end[axis][std::min(static_cast<int>(hi * scale[axis]), bins - 1)];
+        }
+      };
+      const std::size_t end = std::min(n, (c + 1) * (n / chunks + 1));
+      std::size_t i = c * (n / chunks + 1);
+      for (; i + 1 < end; i += 2) {
+        if (i + kBoxAhead + 1 < end) {
+          __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
+          __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead + 1]]);
+        }
+        add(b, i);
+        add(odd, i + 1);
+      }
+      if (i < end) add(b, i);
+      for (int axis = 0; axis < 3; ++axis) {
+        for (int k = 0; k < bins; ++k) {
+          b.start[axis][k] += odd.start[axis][k];
+          b.end[axis][k] += odd.end[axis][k];
         }
       }
     };
@@ -2570,6 +2618,7 @@ class TopBuilder {
       const std::size_t end = std::min(n, (c + 1) * per);
       std::size_t m[3] = {0, 0, 0};
       for (std::size_t i = c * per; i < end; ++i) {
+        if (i + kBoxAhead < end) __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
         const Aabb& t = ctx_.tri_box[tris[i]];
         for (int axis = 0; axis < 3; ++axis) {
           if (!out[axis]) continue;
@@ -2631,7 +2680,9 @@ class TopBuilder {
     std::vector<std::size_t> n_left(chunks + 1, 0), n_right(chunks + 1, 0);
     auto classify = [&](std::size_t c) {
       std::size_t l = 0, r = 0;
-      for (std::size_t i = c * per; i < std::min(n, (c + 1) * per); ++i) {
+      const std::size_t end = std::min(n, (c + 1) * per);
+      for (std::size_t i = c * per; i < end; ++i) {
+        if (i + kBoxAhead < end) __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
         const Aabb& t = ctx_.tri_box[tris[i]];
         const float lo = t.lo[axis], hi = t.hi[axis];
         std::uint8_t s = kBoth;
