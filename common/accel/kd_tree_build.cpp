@@ -320,11 +320,13 @@ class TriangleClip {
   static constexpr int kMaxVerts = 32;  // 3 + one per plane exactly; rounding could add more
   static constexpr double kInf = std::numeric_limits<double>::infinity();
 
+  // The point on a-b at `bound` on `axis`. The component is put in place by selects: written
+  // through x[axis], it went to the stack, and the vertex's copy then waited for that store
+  // (18% of clip()'s samples on spd-rings).
   static glm::dvec3 cut(const glm::dvec3& a, const glm::dvec3& b, int axis, double bound) {
     const double f = (bound - a[axis]) / (b[axis] - a[axis]);
-    glm::dvec3 x = a + f * (b - a);
-    x[axis] = bound;
-    return x;
+    const glm::dvec3 x = a + f * (b - a);
+    return glm::dvec3(axis == 0 ? bound : x.x, axis == 1 ? bound : x.y, axis == 2 ? bound : x.z);
   }
 
   // The largest float at or below lo - pad and the smallest at or above hi + pad on each axis,
