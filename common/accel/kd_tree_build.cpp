@@ -2470,8 +2470,11 @@ class TopBuilder {
 
   // The binning, refinement and partition loops read the boxes of a node's references,
   // scattered over the scene's array (24 bytes each, 50 MB for spd-mount-s10), one after another:
-  // each loop asks for the box this many references ahead.
+  // at reference i (of those before `end`), each loop asks for the box kBoxAhead references on.
   static constexpr std::size_t kBoxAhead = 32;
+  void box_ahead(const std::vector<std::uint32_t>& tris, std::size_t i, std::size_t end) const {
+    if (i + kBoxAhead < end) __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
+  }
 
   struct Bins {
     std::uint32_t start[3][kMaxBins];  // references whose (clamped) lower bound is in the bin
@@ -2518,10 +2521,8 @@ class TopBuilder {
       const std::size_t end = std::min(n, (c + 1) * (n / chunks + 1));
       std::size_t i = c * (n / chunks + 1);
       for (; i + 1 < end; i += 2) {
-        if (i + kBoxAhead + 1 < end) {
-          __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
-          __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead + 1]]);
-        }
+        box_ahead(tris, i, end);
+        box_ahead(tris, i + 1, end);
         add(b, i);
         add(odd, i + 1);
       }
@@ -2620,7 +2621,7 @@ class TopBuilder {
       const std::size_t end = std::min(n, (c + 1) * per);
       std::size_t m[3] = {0, 0, 0};
       for (std::size_t i = c * per; i < end; ++i) {
-        if (i + kBoxAhead < end) __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
+        box_ahead(tris, i, end);
         const Aabb& t = ctx_.tri_box[tris[i]];
         for (int axis = 0; axis < 3; ++axis) {
           if (!out[axis]) continue;
@@ -2684,7 +2685,7 @@ class TopBuilder {
       std::size_t l = 0, r = 0;
       const std::size_t end = std::min(n, (c + 1) * per);
       for (std::size_t i = c * per; i < end; ++i) {
-        if (i + kBoxAhead < end) __builtin_prefetch(&ctx_.tri_box[tris[i + kBoxAhead]]);
+        box_ahead(tris, i, end);
         const Aabb& t = ctx_.tri_box[tris[i]];
         const float lo = t.lo[axis], hi = t.hi[axis];
         std::uint8_t s = kBoth;

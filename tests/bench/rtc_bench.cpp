@@ -240,7 +240,9 @@ int run(int argc, char** argv) {
   app.add_option("--threads", threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--reps", reps, "repetitions; figures are medians")->check(CLI::Range(1, 1000));
   int build_reps = 0;
-  app.add_option("--build-reps", build_reps, "builds timed (default: --reps, and more, up to 100, until rtc's builds add up to half a second); 1 for profiling the tracing")
+  app.add_option("--build-reps", build_reps,
+                 "builds timed (default: --reps, and more, up to 100, until rtc's builds add up to half a second); "
+                 "1 for profiling the tracing")
       ->check(CLI::Range(1, 1000));
   app.add_option("--mode", modes, "primary, shadow, full (repeatable; default: all three)")
       ->check(CLI::IsMember({"primary", "shadow", "full"}));
@@ -413,8 +415,8 @@ int run(int argc, char** argv) {
   // Build time: median over the reps (--build-reps when given), like every other figure; without
   // --build-reps, builds go on past the reps until rtc's add up to kMinBuildMs (at most
   // kMaxBuildRounds rounds): 5 builds of a small scene, each right after Embree's builds have
-  // evicted its caches, read up to 1.2x the median of 61 (bunny's 2 ms at 2 threads), and one of
-  // 12 triangles 2.5x. Builds of 100 ms and more take the reps only. The
+  // evicted its caches, read 1.2x this median on bunny (2 ms at 2 threads: 0.58 against 0.48
+  // s/M) and 2-5x on BoxTextured (12 triangles). Builds of 100 ms and more take the reps only. The
   // previous rep's state is freed before the clock starts, on both sides. With --compare-embree
   // rtc's build and Embree's two take turns round by round (time_rounds_ms), so that a slow
   // spell of the machine falls on all three alike; Embree's high-quality build takes part in the
