@@ -145,9 +145,12 @@ void* alloc_pages(std::size_t bytes, std::size_t align);
 /// of at least half its size, up to kPageCacheBlocks blocks and kPageCacheBytes bytes (beyond
 /// them the oldest kept is freed): a tree is rebuilt frame after frame for moving meshes, and
 /// the kernel zeroes every fresh page, 7% of spd-rings' build at 2 threads (its build's arrays
-/// of 2 MiB or more: 240 MB). Smaller blocks go back to malloc at once.
+/// of 2 MiB or more: 240 MB). 16 blocks since the frame's geometry arrays (FrameGeometry, five
+/// or six blocks on a large scene) come from here too: with 8 a rebuilt frame's tree arrays were
+/// pushed out again (one run at 2 threads: spd-rings 560 ms, against 458-470 with 16). Smaller
+/// blocks go back to malloc at once.
 void free_pages(void* p, std::size_t bytes, std::size_t align) noexcept;
-inline constexpr std::size_t kPageCacheBlocks = 8;
+inline constexpr std::size_t kPageCacheBlocks = 16;
 inline constexpr std::size_t kPageCacheBytes = std::size_t{1} << 30;
 
 /// What free_pages keeps now, and how many alloc_pages calls it served since the process began.
@@ -378,6 +381,12 @@ class KdTree {
 
 /// The 48-byte record for triangle (a, b, c); k = 3 when the triangle has zero area.
 [[nodiscard]] TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+/// make_tri_accel for triangles [first, first + count) of `triangles` (indices into
+/// `positions`, in range), written to out[0, count): the same bits, eight triangles at a time in
+/// double where `isa` is AVX-512 and the CPU has it (the scalar code otherwise). The kd-tree
+/// build's records.
+void make_tri_accels(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles, std::size_t first,
+                     std::size_t count, TriAccel* out, Isa isa);
 /// The watertight record for triangle (a, b, c); k = 3 exactly when make_tri_accel gives 3.
 [[nodiscard]] TriVerts make_tri_verts(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 

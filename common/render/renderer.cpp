@@ -91,6 +91,8 @@ void place_mesh(const Mesh& m, const glm::mat4& world_from_object, std::size_t v
         const glm::dvec3 n = normal_matrix * glm::dvec3(m.normals[i]);
         const double len = glm::length(n);
         g.normals[v_base + i] = len > 0.0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+      } else {
+        g.normals[v_base + i] = glm::vec3(0.0f);
       }
     }
   });
@@ -104,8 +106,9 @@ void flatten(const Scene& scene, const FramePose& pose, FrameGeometry& g) {
     vertex_count += m.positions.size();
     tri_count += m.triangles.size();
   }
+  // Left uninitialised here (UninitVector) and written once each below, in parallel.
   g.positions.resize(vertex_count);
-  g.normals.assign(vertex_count, glm::vec3(0.0f));
+  g.normals.resize(vertex_count);
   g.triangles.resize(tri_count);
   g.material_ids.resize(tri_count);
   g.smooth.resize(tri_count);

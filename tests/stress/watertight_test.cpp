@@ -54,7 +54,8 @@ std::optional<Mesh> bunny() {
   if (!std::filesystem::exists(view)) return std::nullopt;
   const Scene scene = load_scene(view);
   const auto fs = build_frame_state(scene, 0, scene.settings, KdBuildOptions{});
-  return welded(Mesh{"bunny", fs->geometry->positions, fs->geometry->triangles});
+  const FrameGeometry& g = *fs->geometry;
+  return welded(Mesh{"bunny", {g.positions.begin(), g.positions.end()}, {g.triangles.begin(), g.triangles.end()}});
 }
 
 Mesh sphere() {
