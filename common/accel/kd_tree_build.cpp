@@ -3247,8 +3247,17 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const std::uint32_t r = tree.prim_refs_[i];
-      if (r != kLeafBoxRef) tree.leaf_records_[i] = records[r];  // the placer wrote the boxes
+      if (r != kLeafBoxRef) {  // the placer wrote the boxes
+        // Streaming stores: the lines are not read first (spd-rings' 116 MB at 2 threads: this
+        // loop 8.9 -> 6.1 ms). The tracer reads them later from memory either way.
+        const float* from = reinterpret_cast<const float*>(&records[r]);
+        float* to = reinterpret_cast<float*>(&tree.leaf_records_[i]);
+        _mm_stream_ps(to, _mm_load_ps(from));
+        _mm_stream_ps(to + 4, _mm_load_ps(from + 4));
+        _mm_stream_ps(to + 8, _mm_load_ps(from + 8));
+      }
     }
+    _mm_sfence();
   });
 
   tree.stats_.nodes = tree.nodes_.size();
