@@ -145,10 +145,9 @@ void* alloc_pages(std::size_t bytes, std::size_t align);
 /// of at least half its size, up to kPageCacheBlocks blocks and kPageCacheBytes bytes (beyond
 /// them the oldest kept is freed): a tree is rebuilt frame after frame for moving meshes, and
 /// the kernel zeroes every fresh page, 7% of spd-rings' build at 2 threads (its build's arrays
-/// of 2 MiB or more: 240 MB). 16 blocks since the frame's geometry arrays (FrameGeometry, five
-/// or six blocks on a large scene) come from here too: with 8 a rebuilt frame's tree arrays were
-/// pushed out again (one run at 2 threads: spd-rings 560 ms, against 458-470 with 16). Smaller
-/// blocks go back to malloc at once.
+/// of 2 MiB or more: 240 MB). 16 blocks, not 8: repeated builds at 2 threads 0.975x (spd-rings)
+/// and 0.983x (spd-mount-s10) the time (build_experiments.md, session 39). Smaller blocks go
+/// back to malloc at once.
 void free_pages(void* p, std::size_t bytes, std::size_t align) noexcept;
 inline constexpr std::size_t kPageCacheBlocks = 16;
 inline constexpr std::size_t kPageCacheBytes = std::size_t{1} << 30;

@@ -2,10 +2,8 @@
 // whose meshes did not move), camera, lights, materials, settings.
 #pragma once
 
-#include <algorithm>
 #include <cstddef>
 #include <cstdint>
-#include <limits>
 #include <memory>
 #include <new>
 #include <type_traits>
@@ -34,12 +32,13 @@ struct TreeSpace {
   Aabb world_bounds;          ///< a world-space box around everything the tree holds (padded)
 };
 
-/// FrameGeometry's allocator. Its value-initialisation (vector::resize(n)) leaves trivial
-/// elements as they are: the arrays are resized on one thread and then written once each in
+/// FrameGeometry's allocator: its value-initialisation (vector::resize(n)) leaves trivial
+/// elements as they are. The arrays are resized on one thread and then written once each in
 /// parallel, and zero-filling them first cost spd-rings' build 11-14 ms of serial page faults
-/// and stores (33 MB). Its memory comes from alloc_pages: blocks of 2 MiB or more as huge pages,
-/// kept when freed and lent to the next frame's arrays, so a rebuilt frame does not fault its
-/// pages in again (spd-mount-s10's 69 MB took 21 ms of faults at 2 threads).
+/// and stores (33 MB). (Taking them from alloc_pages, as huge pages kept for the next frame, made
+/// repeated builds ~2% faster but first builds in a fresh process 3-16% slower: on this VM a
+/// huge page's first touch costs more after the memory went back to the host. Not kept;
+/// build_experiments.md, session 39.)
 template <class T>
 struct DefaultInitAllocator : std::allocator<T> {
   using value_type = T;
@@ -50,11 +49,6 @@ struct DefaultInitAllocator : std::allocator<T> {
   DefaultInitAllocator() = default;
   template <class U>
   DefaultInitAllocator(const DefaultInitAllocator<U>& /*other*/) noexcept {}  // NOLINT: as std::allocator
-  T* allocate(std::size_t n) {
-    if (n > std::numeric_limits<std::size_t>::max() / sizeof(T)) throw std::bad_alloc();
-    return static_cast<T*>(alloc_pages(std::max<std::size_t>(n, 1) * sizeof(T), alignof(T)));
-  }
-  void deallocate(T* p, std::size_t n) noexcept { free_pages(p, std::max<std::size_t>(n, 1) * sizeof(T), alignof(T)); }
   template <class U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
     ::new (static_cast<void*>(p)) U;
