@@ -381,11 +381,11 @@ class KdTree {
 /// The 48-byte record for triangle (a, b, c); k = 3 when the triangle has zero area.
 [[nodiscard]] TriAccel make_tri_accel(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 /// make_tri_accel for triangles [first, first + count) of `triangles` (indices into
-/// `positions`, in range), written to out[0, count): the same bits, eight triangles at a time in
-/// double where `isa` is AVX-512 and the CPU has it (the scalar code otherwise). The kd-tree
-/// build's records.
+/// `positions`, in range), written to out[0, count).wald: the same bits, eight triangles at a
+/// time in double where `isa` is AVX-512 and the CPU has it (the scalar code otherwise). The
+/// kd-tree build's records.
 void make_tri_accels(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles, std::size_t first,
-                     std::size_t count, TriAccel* out, Isa isa);
+                     std::size_t count, TriRecord* out, Isa isa);
 /// The watertight record for triangle (a, b, c); k = 3 exactly when make_tri_accel gives 3.
 [[nodiscard]] TriVerts make_tri_verts(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 

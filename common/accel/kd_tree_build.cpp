@@ -2986,10 +2986,11 @@ namespace {
 // make_tri_accel for eight triangles, its double operations lane by lane in its order (separate
 // multiplies and adds, as -ffp-contract=off compiles it; the same comparisons for k, the same
 // selects of u and v), so the same bits: a record took ~125 cycles of scalar code, most of them
-// its nine double divisions. Lanes with zero area (or a non-finite normal) get the default
-// record, k = 3.
+// its nine double divisions. Lanes whose |n[k]| is zero or not finite get the default record,
+// k = 3. (One exception to "the same bits", out of the loaders' reach since they reject NaN
+// coordinates: a sum of two NaNs may keep the other one's payload than the scalar code's.)
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] void make_tri_accel_x8(const float (&v)[9][8],
-                                                                                       TriAccel* out) {
+                                                                                       TriRecord* out) {
   // (Lambdas would not inherit the target; macros, undefined below. The zero-masking forms, as
   // in best_on_axis_avx512.)
 #define RTC_LOAD(i) _mm512_maskz_cvtps_pd(0xFF, _mm256_loadu_ps(v[i]))
@@ -3049,14 +3050,14 @@ namespace {
       acc.b_nu = f[3][j], acc.b_nv = f[4][j], acc.b_d = f[5][j];
       acc.c_nu = f[6][j], acc.c_nv = f[7][j], acc.c_d = f[8][j];
     }
-    out[j] = acc;
+    out[j].wald = acc;
   }
 }
 
 }  // namespace
 
 void make_tri_accels(std::span<const glm::vec3> positions, std::span<const glm::uvec3> triangles, std::size_t first,
-                     std::size_t count, TriAccel* out, Isa isa) {
+                     std::size_t count, TriRecord* out, Isa isa) {
   static const bool avx512 = cpu_supports(Isa::Avx512);
   std::size_t i = 0;
   if (isa == Isa::Avx512 && avx512) {
@@ -3072,7 +3073,7 @@ void make_tri_accels(std::span<const glm::vec3> positions, std::span<const glm::
   }
   for (; i < count; ++i) {
     const glm::uvec3 t = triangles[first + i];
-    out[i] = make_tri_accel(positions[t.x], positions[t.y], positions[t.z]);
+    out[i].wald = make_tri_accel(positions[t.x], positions[t.y], positions[t.z]);
   }
 }
 
@@ -3152,7 +3153,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
     }
     // Every byte of a record written (the array is not initialised): TriAccel's 48.
     static_assert(sizeof(TriAccel) == sizeof(TriRecord));
-    if (!options.watertight) make_tri_accels(positions, triangles, begin, end - begin, &records[begin].wald, isa);
+    if (!options.watertight) make_tri_accels(positions, triangles, begin, end - begin, &records[begin], isa);
     for (std::size_t i = begin; i != end; ++i) {
       const std::uint32_t id = ids.empty() ? static_cast<std::uint32_t>(i) : ids[i];
       RTC_CHECK(id < 0x7FFFFFFFu, "kd-tree: triangle id must be below 2^31 - 1 (hits carry it as int32)");
@@ -3244,20 +3245,25 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
+  // Large arrays are written with streaming stores: their lines are not read first (spd-rings'
+  // 116 MB at 2 threads: this loop 8.9 -> 6.1 ms), and the tracer finds them in memory, not in
+  // the caches, either way. A small tree's (a moving mesh's, rebuilt every frame) stay cached.
+  const bool stream = tree.leaf_records_.size() * sizeof(TriRecord) >= (std::size_t{32} << 20);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const std::uint32_t r = tree.prim_refs_[i];
-      if (r != kLeafBoxRef) {  // the placer wrote the boxes
-        // Streaming stores: the lines are not read first (spd-rings' 116 MB at 2 threads: this
-        // loop 8.9 -> 6.1 ms). The tracer reads them later from memory either way.
-        const float* from = reinterpret_cast<const float*>(&records[r]);
-        float* to = reinterpret_cast<float*>(&tree.leaf_records_[i]);
-        _mm_stream_ps(to, _mm_load_ps(from));
-        _mm_stream_ps(to + 4, _mm_load_ps(from + 4));
-        _mm_stream_ps(to + 8, _mm_load_ps(from + 8));
+      if (r == kLeafBoxRef) continue;  // the placer wrote the boxes
+      if (!stream) {
+        tree.leaf_records_[i] = records[r];
+        continue;
       }
+      const float* from = reinterpret_cast<const float*>(&records[r]);
+      float* to = reinterpret_cast<float*>(&tree.leaf_records_[i]);
+      _mm_stream_ps(to, _mm_load_ps(from));
+      _mm_stream_ps(to + 4, _mm_load_ps(from + 4));
+      _mm_stream_ps(to + 8, _mm_load_ps(from + 8));
     }
-    _mm_sfence();
+    if (stream) _mm_sfence();
   });
 
   tree.stats_.nodes = tree.nodes_.size();
