@@ -3246,8 +3246,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
   // Large arrays are written with streaming stores: their lines are not read first (spd-rings'
-  // 116 MB at 2 threads: this loop 8.9 -> 6.1 ms), and the tracer finds them in memory, not in
-  // the caches, either way. A small tree's (a moving mesh's, rebuilt every frame) stay cached.
+  // 116 MB at 2 threads: this loop 8.9 -> 6.1 ms). At 32 MiB an array is far past the L2 the
+  // walks run from (trace_experiments.md, session 37), so a normal store's cached copy would
+  // mostly be gone by the time the tracer reads it; a small tree's (a moving mesh's, rebuilt
+  // every frame) is stored normally and stays cached.
   const bool stream = tree.leaf_records_.size() * sizeof(TriRecord) >= (std::size_t{32} << 20);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tree.prim_refs_.size(), 4096), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
