@@ -11,6 +11,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdlib>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <exception>
@@ -2396,6 +2397,39 @@ class BlockBuilder {
   const bool side_by_side_;  // set-up and large sweeps side by side (BuildContext::side_by_side_above)
 };
 
+// TopBuilder::binned_split's bins of up to 16 references tris[0, count) at once: for each axis,
+// the bin of the lower and of the upper bound of each one's box clamped to `box` (out[2 * axis]
+// and out[2 * axis + 1], lane j for reference j). The scalar loop's float operations in its order
+// (max or min with the node's bound, minus its lower bound, times the axis's scale, truncated,
+// at most bins - 1), so the same bins: where a max or min picks the other of two equal values,
+// they differ at most in the sign of zero, which gives the same bin. The boxes are gathered by
+// 32-bit float indices, so triangle ids must stay below kVectorBinTris.
+constexpr std::size_t kVectorBinTris = std::size_t{1} << 28;
+[[gnu::target("avx512f,avx512dq,avx512vl,avx2")]] void bin_bounds16_avx512(const Aabb* tri_box,
+                                                                         const std::uint32_t* tris, std::size_t count,
+                                                                         const Aabb& box, const float* scale, int bins,
+                                                                         std::int32_t (*out)[16]) {
+  static_assert(sizeof(Aabb) == 6 * sizeof(float) && offsetof(Aabb, lo) == 0 && offsetof(Aabb, hi) == 12);
+  const __mmask16 live = static_cast<__mmask16>((1u << count) - 1u);
+  const __m512i idx = _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(live, tris), _mm512_set1_epi32(6));
+  const float* base = reinterpret_cast<const float*>(tri_box);
+  const __m512i last = _mm512_set1_epi32(bins - 1);
+  for (int axis = 0; axis < 3; ++axis) {
+    const __m512 lo_bound = _mm512_set1_ps(box.lo[axis]), hi_bound = _mm512_set1_ps(box.hi[axis]);
+    const __m512 sc = _mm512_set1_ps(scale[axis]);
+    const __m512 t_lo = _mm512_mask_i32gather_ps(_mm512_setzero_ps(), live, _mm512_add_epi32(idx, _mm512_set1_epi32(axis)),
+                                                 base, 4);
+    const __m512 t_hi = _mm512_mask_i32gather_ps(_mm512_setzero_ps(), live,
+                                                 _mm512_add_epi32(idx, _mm512_set1_epi32(3 + axis)), base, 4);
+    const __m512 lo = _mm512_sub_ps(_mm512_maskz_max_ps(0xFFFF, t_lo, lo_bound), lo_bound);
+    const __m512 hi = _mm512_sub_ps(_mm512_maskz_min_ps(0xFFFF, t_hi, hi_bound), lo_bound);
+    _mm512_storeu_si512(out[2 * axis],
+                        _mm512_maskz_min_epi32(0xFFFF, _mm512_maskz_cvttps_epi32(0xFFFF, _mm512_mul_ps(lo, sc)), last));
+    _mm512_storeu_si512(out[2 * axis + 1],
+                        _mm512_maskz_min_epi32(0xFFFF, _mm512_maskz_cvttps_epi32(0xFFFF, _mm512_mul_ps(hi, sc)), last));
+  }
+}
+
 // A node above the exact blocks: an inner node with a binned plane, or a block.
 struct TopNode {
   int axis = -1;  // -1: `block` holds the whole subtree
@@ -2521,6 +2555,21 @@ class TopBuilder {
       };
       const std::size_t end = std::min(n, (c + 1) * (n / chunks + 1));
       std::size_t i = c * (n / chunks + 1);
+      if (ctx_.avx512 && ctx_.tri_box.size() <= kVectorBinTris) {
+        alignas(64) std::int32_t at[6][16];
+        for (; i < end; i += 16) {
+          const std::size_t m = std::min<std::size_t>(16, end - i);
+          for (std::size_t j = 0; j < m; j += 4) box_ahead(tris, i + j, end);  // a line holds 2-3 boxes
+          bin_bounds16_avx512(ctx_.tri_box.data(), tris.data() + i, m, box, scale, bins, at);
+          for (std::size_t j = 0; j < m; ++j) {
+            Bins& to = (j & 1u) != 0 ? odd : b;
+            for (int axis = 0; axis < 3; ++axis) {
+              ++to.start[axis][at[2 * axis][j]];
+              ++to.end[axis][at[2 * axis + 1][j]];
+            }
+          }
+        }
+      }
       for (; i + 1 < end; i += 2) {
         box_ahead(tris, i, end);
         box_ahead(tris, i + 1, end);

@@ -878,6 +878,24 @@ TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
       0));
 }
 
+TEST(KdTree, BinnedLevelsVectorBinsBuildTheScalarTree) {
+  // Above KdBuildOptions::exact_below references a node is split by the binned SAH, whose bins
+  // of 16 references at a time come from vector code where the CPU has AVX-512 (the boxes
+  // gathered, clamped to the node and binned by the scalar loop's float operations in its
+  // order). The same counts, so node for node the same tree. A low exact_below bins nodes down
+  // to a few dozen references: boxes that cross the node's bounds (clamped), lie in a plane
+  // (planar piles), sit on signed zeros, and chunks whose last step holds fewer than 16.
+  for (int exact_below : {40, 300}) {
+    SCOPED_TRACE(testing::Message() << "exact below " << exact_below);
+    KdBuildOptions base;
+    base.exact_below = exact_below;
+    ASSERT_NO_FATAL_FAILURE(expect_vector_build_matches_scalar(
+        {{random_soup(7, 5000, 0.05f), 3.0f}, {sphere_and_grid(24), 3.0f}, {sliver_fan(13, 3000), 3.0f},
+         {planar_piles(17, 3000), 3.0f}, {random_soup(29, 301, 0.5f), 1.0f}, {signed_zero_cells(), 0.1f}},
+        64, base));
+  }
+}
+
 // A view-aware SAH (KdBuildOptions::footprint_pixels) aimed from `eye` with pixels `slope`
 // wide per unit of distance.
 KdBuildOptions aimed(glm::vec3 eye, float slope, float pixels = 2.0f, int max_refs = 32) {
