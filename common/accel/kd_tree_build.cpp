@@ -247,16 +247,13 @@ class SahAxis {
 // a reference's bounds only shrink down the tree and its events never grow in number.
 class TriangleClip {
  public:
+  static constexpr int kMaxVerts = 32;  // 3 + one per plane exactly; rounding could add more
+
   // Clips triangle `tri` to `box`; false when the polygon could overflow its buffer or a
   // magnitude is not finite (the caller keeps clamped boxes then).
   bool clip(const BuildContext& ctx, std::uint32_t tri, const Aabb& box) {
+    if (!set_pad(ctx, tri, box)) return false;
     const Aabb& t = ctx.tri_box[tri];
-    const glm::dvec3 mag = glm::max(glm::max(glm::abs(glm::dvec3(t.lo)), glm::abs(glm::dvec3(t.hi))),
-                                    glm::max(glm::abs(glm::dvec3(box.lo)), glm::abs(glm::dvec3(box.hi))));
-    const double m = std::max({mag.x, mag.y, mag.z});
-    if (!std::isfinite(m)) return false;
-    pad_ = std::ldexp(m, -40);
-    vector_ = ctx.avx512 ? kRoundAvx512 : (ctx.avx2 ? kRoundAvx2 : kRoundScalar);
     glm::dvec3* poly = a_.data();
     glm::dvec3* next = b_.data();
     const glm::uvec3 idx = ctx.triangles[tri];
@@ -297,30 +294,76 @@ class TriangleClip {
     return round_out(lo, hi, clamped);
   }
 
+  // The clipped polygon (valid after clip() returned true, until the next clip()).
+  [[nodiscard]] const glm::dvec3* poly() const { return poly_; }
+  [[nodiscard]] int size() const { return n_; }
+
+  // Takes polygon [poly, poly + n) of triangle `tri` (kept from an earlier split, where it was
+  // the triangle clipped to that node's part of the box) in place of clip()'s; false where
+  // clip() would have given up on the magnitudes (the caller keeps clamped boxes then).
+  bool take(const BuildContext& ctx, std::uint32_t tri, const Aabb& box, const glm::dvec3* poly, int n) {
+    if (!set_pad(ctx, tri, box)) return false;
+    poly_ = poly;
+    n_ = n;
+    return true;
+  }
+
   // Bounds of the clipped polygon's parts on either side of the plane `axis` = `p` (one more
-  // clip step for each), inside `left_clamped` and `right_clamped`.
-  void split(int axis, float p, const Aabb& left_clamped, const Aabb& right_clamped, Aabb& left, Aabb& right) const {
+  // clip step for each), inside `left_clamped` and `right_clamped`. The parts themselves are
+  // appended to `out` (left, then right: a vertex in the plane goes to both, as does the
+  // point where an edge crosses it), where `left_part` and `right_part` find them (count 0
+  // for a part of more than kMaxVerts vertices, not kept). `out` must have room for
+  // kSplitRoom more without reallocating: poly_ may lie in it.
+  static constexpr std::size_t kSplitRoom = 4 * kMaxVerts;
+  template <class PolyRef>
+  void split(int axis, float p, const Aabb& left_clamped, const Aabb& right_clamped, Aabb& left, Aabb& right,
+             std::vector<glm::dvec3>& out, PolyRef& left_part, PolyRef& right_part) const {
     glm::dvec3 llo(kInf), lhi(-kInf), rlo(kInf), rhi(-kInf);
     int nl = 0, nr = 0;
     const double bound = p;
+    const auto at = static_cast<std::uint32_t>(out.size());
+    glm::dvec3 rpart[2 * kMaxVerts];
     for (int i = 0; i < n_; ++i) {
       const glm::dvec3& a = poly_[i];
       const glm::dvec3& b = poly_[i + 1 == n_ ? 0 : i + 1];
-      if (a[axis] <= bound) llo = glm::min(llo, a), lhi = glm::max(lhi, a), ++nl;
-      if (a[axis] >= bound) rlo = glm::min(rlo, a), rhi = glm::max(rhi, a), ++nr;
+      if (a[axis] <= bound) {
+        llo = glm::min(llo, a), lhi = glm::max(lhi, a), ++nl;
+        out.push_back(a);
+      }
+      if (a[axis] >= bound) {
+        rlo = glm::min(rlo, a), rhi = glm::max(rhi, a);
+        rpart[nr++] = a;
+      }
       if ((a[axis] < bound && b[axis] > bound) || (a[axis] > bound && b[axis] < bound)) {
         const glm::dvec3 x = cut(a, b, axis, bound);
         llo = glm::min(llo, x), lhi = glm::max(lhi, x), ++nl;
-        rlo = glm::min(rlo, x), rhi = glm::max(rhi, x), ++nr;
+        out.push_back(x);
+        rlo = glm::min(rlo, x), rhi = glm::max(rhi, x);
+        rpart[nr++] = x;
       }
     }
     left = nl > 0 ? round_out(llo, lhi, left_clamped) : left_clamped;
     right = nr > 0 ? round_out(rlo, rhi, right_clamped) : right_clamped;
+    out.insert(out.end(), rpart, rpart + nr);
+    left_part = PolyRef{at, nl <= kMaxVerts ? static_cast<std::uint32_t>(nl) : 0u};
+    right_part = PolyRef{at + static_cast<std::uint32_t>(nl), nr <= kMaxVerts ? static_cast<std::uint32_t>(nr) : 0u};
   }
 
  private:
-  static constexpr int kMaxVerts = 32;  // 3 + one per plane exactly; rounding could add more
   static constexpr double kInf = std::numeric_limits<double>::infinity();
+
+  // round_out's pad for triangle `tri` in `box` (2^-40 of the largest magnitude of either's
+  // bounds) and its code; false where a magnitude is not finite.
+  bool set_pad(const BuildContext& ctx, std::uint32_t tri, const Aabb& box) {
+    const Aabb& t = ctx.tri_box[tri];
+    const glm::dvec3 mag = glm::max(glm::max(glm::abs(glm::dvec3(t.lo)), glm::abs(glm::dvec3(t.hi))),
+                                    glm::max(glm::abs(glm::dvec3(box.lo)), glm::abs(glm::dvec3(box.hi))));
+    const double m = std::max({mag.x, mag.y, mag.z});
+    if (!std::isfinite(m)) return false;
+    pad_ = std::ldexp(m, -40);
+    vector_ = ctx.avx512 ? kRoundAvx512 : (ctx.avx2 ? kRoundAvx2 : kRoundScalar);
+    return true;
+  }
 
   // The point on a-b at `bound` on `axis`. The component is put in place by selects: written
   // through x[axis], it went to the stack, and the vertex's copy then waited for that store
@@ -407,7 +450,7 @@ class TriangleClip {
   enum RoundOut { kRoundScalar, kRoundAvx2, kRoundAvx512 };
 
   std::array<glm::dvec3, kMaxVerts> a_, b_;
-  glm::dvec3* poly_ = nullptr;
+  const glm::dvec3* poly_ = nullptr;
   int n_ = 0;
   double pad_ = 0;
   RoundOut vector_ = kRoundScalar;  // round_out's code (BuildContext::avx512, avx2)
@@ -595,14 +638,23 @@ struct Scratch {
   // Each reference's bounds in the node being split (clipped at the block's root, then where it
   // straddles a split), with -0 written as +0 as in its events (add_events).
   std::vector<Aabb> bounds;
+  // A straddler's polygon (its triangle clipped to the node's cell) in `polys`: count 0 for
+  // none kept (the triangle is clipped to the cell where it next straddles a split).
+  struct PolyRef {
+    std::uint32_t offset = 0, count = 0;
+  };
+  std::vector<PolyRef> poly_at;    // each reference's, in the node being split
+  std::vector<glm::dvec3> polys;   // a stack: a node's parts above its entry size, dropped at its exit
   struct Restore {
     std::uint32_t ref;
     Aabb before, right;  // its bounds in the parent; in the right child
+    PolyRef poly_before, poly_right;
   };
   std::vector<Restore> restore;  // the straddlers of the nodes on the path to the present one
   std::vector<std::uint32_t> straddlers;     // one split's references on both sides
   std::vector<std::uint32_t> slot;           // a reference's bit in the bit-mask stage
   std::vector<Aabb> clip_left, clip_right;   // a split's straddlers clipped to either child
+  std::vector<PolyRef> poly_left, poly_right;  // ... and their polygons there
   TriangleClip clip;
   std::vector<Event> kept_left[3], kept_right[3];  // each axis's events of one-sided references
   std::vector<Event> new_left, new_right;    // ... and the straddlers' regenerated ones
@@ -682,6 +734,7 @@ struct Scratch {
     const auto add = [&n](const auto& v) { n += v.capacity() * sizeof(v[0]); };
     add(side), add(sort_buffer), add(leaf), add(sort_bits), add(bounds), add(restore), add(straddlers), add(slot);
     add(clip_left), add(clip_right), add(new_left), add(new_right), add(mask_refs), add(mask_stack);
+    add(poly_at), add(polys), add(poly_left), add(poly_right);
     add(part.nodes), add(part.refs), add(part.boxes), add(part.terms);
     for (int axis = 0; axis < 3; ++axis) {
       add(kept_left[axis]), add(kept_right[axis]);
@@ -1953,6 +2006,8 @@ class BlockBuilder {
       for (int axis = 0; axis < 3; ++axis) make_list(axis, s_.sort_buffer);
     }
     s_.restore.clear();
+    s_.poly_at.assign(n, Scratch::PolyRef{});
+    s_.polys.clear();
     out_.nodes.assign(1, KdNode{});
     node(0, off, len, n, box, depth);
   }
@@ -2139,20 +2194,39 @@ class BlockBuilder {
     std::vector<Aabb>& clip_right = s_.clip_right;
     clip_left.resize(straddlers.size());
     clip_right.resize(straddlers.size());
-    // The triangle is clipped to the node once; one more step splits the polygon in two.
+    // The triangle is clipped to the node where it first straddles a split; one more step
+    // splits the polygon in two, and each child keeps its part for its own splits.
     TriangleClip& clip = s_.clip;
+    std::vector<Scratch::PolyRef>& poly_left = s_.poly_left;
+    std::vector<Scratch::PolyRef>& poly_right = s_.poly_right;
+    poly_left.resize(straddlers.size());
+    poly_right.resize(straddlers.size());
+    std::vector<glm::dvec3>& polys = s_.polys;
+    const std::size_t poly_mark = polys.size();
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
+      const std::uint32_t ref = straddlers[k];
+      const Scratch::PolyRef kept = s_.poly_at[ref];
       if (k + 2 * kTriAhead < straddlers.size()) prefetch_triangle(ctx_, tris_[straddlers[k + 2 * kTriAhead]], false);
-      if (k + kTriAhead < straddlers.size()) prefetch_triangle(ctx_, tris_[straddlers[k + kTriAhead]], true);
-      const std::uint32_t tri = tris_[straddlers[k]];
-      const Aabb& current = bounds[straddlers[k]];
+      if (k + kTriAhead < straddlers.size() && s_.poly_at[straddlers[k + kTriAhead]].count == 0) {
+        prefetch_triangle(ctx_, tris_[straddlers[k + kTriAhead]], true);
+      }
+      const std::uint32_t tri = tris_[ref];
+      const Aabb& current = bounds[ref];
       const Aabb left_clamped = clamp_box(current, left_box);
       const Aabb right_clamped = clamp_box(current, right_box);
-      if (clip.clip(ctx_, tri, box)) {
-        clip.split(split.axis, p, left_clamped, right_clamped, clip_left[k], clip_right[k]);
+      // Room for both parts before the kept polygon's address is taken (it may lie in polys).
+      if (polys.capacity() < polys.size() + TriangleClip::kSplitRoom) {
+        polys.reserve(std::max(2 * polys.capacity(), polys.size() + TriangleClip::kSplitRoom));
+      }
+      const bool have = kept.count > 0 ? clip.take(ctx_, tri, box, polys.data() + kept.offset, static_cast<int>(kept.count))
+                                       : clip.clip(ctx_, tri, box);
+      if (have) {
+        clip.split(split.axis, p, left_clamped, right_clamped, clip_left[k], clip_right[k], polys, poly_left[k],
+                   poly_right[k]);
       } else {
         clip_left[k] = left_clamped;
         clip_right[k] = right_clamped;
+        poly_left[k] = poly_right[k] = Scratch::PolyRef{};
       }
     }
 
@@ -2194,8 +2268,9 @@ class BlockBuilder {
     const std::size_t restore = s_.restore.size();
     for (std::size_t k = 0; k < straddlers.size(); ++k) {
       const std::uint32_t ref = straddlers[k];
-      s_.restore.push_back(Scratch::Restore{ref, bounds[ref], signless(clip_right[k])});
+      s_.restore.push_back(Scratch::Restore{ref, bounds[ref], signless(clip_right[k]), s_.poly_at[ref], poly_right[k]});
       bounds[ref] = signless(clip_left[k]);
+      s_.poly_at[ref] = poly_left[k];
     }
     const std::size_t restore_end = s_.restore.size();
     std::optional<ScratchPool::Lease> spare;
@@ -2207,11 +2282,18 @@ class BlockBuilder {
            restore, restore_end, **spare);
     } else {
       node(first, left_off, left_len, left_count, left_box, depth + 1);
-      for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].right;
+      for (std::size_t k = restore; k < restore_end; ++k) {
+        bounds[s_.restore[k].ref] = s_.restore[k].right;
+        s_.poly_at[s_.restore[k].ref] = s_.restore[k].poly_right;
+      }
       node(first + 1, right_off, right_len, right_count, right_box, depth + 1);
     }
-    for (std::size_t k = restore; k < restore_end; ++k) bounds[s_.restore[k].ref] = s_.restore[k].before;
+    for (std::size_t k = restore; k < restore_end; ++k) {
+      bounds[s_.restore[k].ref] = s_.restore[k].before;
+      s_.poly_at[s_.restore[k].ref] = s_.restore[k].poly_before;
+    }
     s_.restore.resize(restore);
+    s_.polys.resize(poly_mark);
     s_.arena.release(mark);
   }
 
@@ -2248,10 +2330,23 @@ class BlockBuilder {
     // axis), so a fork costs its child's size, not its block's.
     if (child.bounds.size() < tris_.size()) child.bounds.resize(tris_.size());
     const Event* ev = child.arena.at(off[0]);
+    if (child.poly_at.size() < tris_.size()) child.poly_at.resize(tris_.size());
+    child.polys.clear();
+    const auto copy_poly = [&](Scratch::PolyRef from) {
+      const auto at = static_cast<std::uint32_t>(child.polys.size());
+      child.polys.insert(child.polys.end(), s_.polys.begin() + from.offset, s_.polys.begin() + from.offset + from.count);
+      return Scratch::PolyRef{at, from.count};
+    };
     for (std::size_t i = 0; i < right_len[0]; ++i) {
-      if (ev[i].type() != kEnd) child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
+      if (ev[i].type() != kEnd) {
+        child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
+        child.poly_at[ev[i].ref()] = copy_poly(s_.poly_at[ev[i].ref()]);
+      }
     }
-    for (std::size_t k = restore; k < restore_end; ++k) child.bounds[s_.restore[k].ref] = s_.restore[k].right;
+    for (std::size_t k = restore; k < restore_end; ++k) {
+      child.bounds[s_.restore[k].ref] = s_.restore[k].right;
+      child.poly_at[s_.restore[k].ref] = copy_poly(s_.restore[k].poly_right);
+    }
 
     tbb::task_group right;
     ctx_.work.fetch_add(1, std::memory_order_relaxed);
