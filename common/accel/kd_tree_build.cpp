@@ -2171,10 +2171,11 @@ class BlockBuilder {
     right_box.lo[split.axis] = p;
 
     // Perfect splits (Wald & Havran 2006, sections 4.3 and 5): each straddling reference is
-    // clipped to both children's boxes and its events regenerated on every axis; the few new
-    // events are sorted and merged into the lists the other references keep in order.
-    // The split axis's pass also collects the straddlers (with clipping) and counts each
-    // child's one-sided references; their order does not matter (sorted below).
+    // clipped to both children's boxes (its polygon kept for their own splits); the events of
+    // its parts that moved are made anew, sorted and merged into the lists the other
+    // references (and its unmoved events, StraddlerKeep) keep in order. The split axis's pass
+    // comes first: it collects the straddlers (with clipping) and counts each child's one-sided
+    // references; their order does not matter (sorted below).
     std::vector<std::uint32_t>& straddlers = s_.straddlers;
     straddlers.clear();
     std::size_t n_kept_left[3], n_kept_right[3];
