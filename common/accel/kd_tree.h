@@ -292,6 +292,17 @@ struct KdBuildOptions {
   /// keeps an AVX-512 CPU on the AVX2 code that CPUs without AVX-512 run (the tests build with
   /// both and compare); Sse42 is `simd` off.
   Isa simd_limit = Isa::Avx512;
+  /// With clipping, a straddling triangle's clipped polygon is kept for the children of the
+  /// split, whose own splits then cut it at one plane; false: every split clips the triangle
+  /// to the node's cell again (up to six planes). The same polygon up to the rounding of its
+  /// cut points, and the bounds are rounded outward, so the same trees on every view tested
+  /// (tested on soups); for tests and A/B runs.
+  bool keep_clipped_polygons = true;
+  /// With clipping, a straddler's events that its parts keep unchanged stay in place in the
+  /// children's lists and only the moved ones are made anew and merged; false: all are made
+  /// anew. Exactly the same trees (only the order of events at one position differs, which the
+  /// build never reads; tested); for tests and A/B runs.
+  bool keep_unmoved_events = true;
 
   /// mask_below with -1 resolved. With clipping 64: larger bit-mask subtrees lose the clipping
   /// below their roots, and at 128 spd-tree's 16-wide primary rays were 0.95x (builds 0.90x,

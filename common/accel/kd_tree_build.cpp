@@ -56,8 +56,8 @@ static_assert(sizeof(Event) == 8);
 enum Side : std::uint8_t { kLeft = 0, kRight = 1, kBoth = 2 };
 // Whether a reference of side s is kept by the left or right child, as arithmetic on the
 // encoding above (comparisons compile to branches that the sides' random order mispredicts):
-// with clipping only one-sided references (a straddler's events are made anew), without every
-// reference not wholly on the other side.
+// with clipping only one-sided references (a straddler's events are kept by its keep bits,
+// StraddlerKeep, or made anew), without every reference not wholly on the other side.
 [[gnu::always_inline]] inline std::size_t only_left(std::uint32_t s) { return 1u >> s; }
 [[gnu::always_inline]] inline std::size_t only_right(std::uint32_t s) { return s & 1u; }
 [[gnu::always_inline]] inline std::size_t not_right(std::uint32_t s) { return ~s & 1u; }
@@ -239,9 +239,10 @@ class SahAxis {
 // Clipping straddling triangles ("perfect splits", Wald & Havran 2006, section 4.3). The
 // bounds computed here are never smaller than the exact intersection: Sutherland-Hodgman in
 // double against the node's planes (a point on a plane counts as inside, so a triangle lying
-// in a face survives), the result widened by far more than the double rounding of at most
-// seven clip steps (2^-40 of the largest magnitude involved), rounded outward to float and
-// intersected with the clamped box. Where a clip comes out empty (a triangle that only touches
+// in a face survives), the result widened by far more than the double rounding of its clip
+// steps (2^-40 of the largest magnitude involved; a polygon kept from split to split down a
+// block takes at most 6 + 60 steps, each off by about 2^-52 of the magnitude), rounded outward
+// to float and intersected with the clamped box. Where a clip comes out empty (a triangle that only touches
 // the box, or rounding) the clamped box is kept: a reference is never dropped here. `bounds`
 // are the reference's bounds so far (its triangle's box at first); results lie inside them, so
 // a reference's bounds only shrink down the tree and its events never grow in number.
@@ -293,10 +294,6 @@ class TriangleClip {
     }
     return round_out(lo, hi, clamped);
   }
-
-  // The clipped polygon (valid after clip() returned true, until the next clip()).
-  [[nodiscard]] const glm::dvec3* poly() const { return poly_; }
-  [[nodiscard]] int size() const { return n_; }
 
   // Takes polygon [poly, poly + n) of triangle `tri` (kept from an earlier split, where it was
   // the triangle clipped to that node's part of the box) in place of clip()'s; false where
@@ -1666,10 +1663,13 @@ struct SplitCounts {
 
 // BlockBuilder::node's split of one axis's events by each reference's side, 8 events at a time:
 // the sides gathered, the events kept on either side compressed into `left` and `right` in
-// order (each store writes 8 events, so both have room for 8 more than they keep). With clipping a straddler's
-// events go to neither list; without, one-sided references' events to their side and every
-// other to both. On the split axis the kept references are counted and, given `straddlers`,
-// the references whose start lies on both sides written there (in event order).
+// order (each store writes 8 events, so both have room for 8 more than they keep). With
+// clipping, one-sided references' events go to their side and a straddler's (side kBoth): on
+// the split axis its start to the left and its end to the right; on the other axes where its
+// keep bits (above the side in the same word, StraddlerKeep) say. Without clipping, one-sided
+// references' events go to their side and every other to both. On the split axis the
+// one-sided references are counted and, given `straddlers`, the references whose start lies
+// on both sides written there (in event order).
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitCounts split_events_avx512(
     const Event* ev, std::size_t size, const std::uint32_t* side, bool clip, bool split_axis, Event* left,
     Event* right, std::uint32_t* straddlers, int axis) {
@@ -2290,8 +2290,9 @@ class BlockBuilder {
       if (polys.capacity() < polys.size() + TriangleClip::kSplitRoom) {
         polys.reserve(std::max(2 * polys.capacity(), polys.size() + TriangleClip::kSplitRoom));
       }
-      const bool have = kept.count > 0 ? clip.take(ctx_, tri, box, polys.data() + kept.offset, static_cast<int>(kept.count))
-                                       : clip.clip(ctx_, tri, box);
+      const bool have = kept.count > 0 && ctx_.options.keep_clipped_polygons
+                            ? clip.take(ctx_, tri, box, polys.data() + kept.offset, static_cast<int>(kept.count))
+                            : clip.clip(ctx_, tri, box);
       if (have) {
         clip.split(split.axis, p, left_clamped, right_clamped, clip_left[k], clip_right[k], polys, poly_left[k],
                    poly_right[k]);
@@ -2309,7 +2310,9 @@ class BlockBuilder {
     if (ctx_.clip) {
       for (std::size_t k = 0; k < straddlers.size(); ++k) {
         const std::uint32_t ref = straddlers[k];
-        const std::uint32_t bits = straddler_keep(bounds[ref], signless(clip_left[k]), signless(clip_right[k]));
+        const std::uint32_t bits = ctx_.options.keep_unmoved_events
+                                       ? straddler_keep(bounds[ref], signless(clip_left[k]), signless(clip_right[k]))
+                                       : 0u;  // all made anew: the split axis's kept ones taken out again
         side[ref] = kBoth | bits << 2;
         drop |= (bits & kKeepSplitAxis[split.axis]) != kKeepSplitAxis[split.axis];
       }
@@ -2446,7 +2449,8 @@ class BlockBuilder {
     for (std::size_t i = 0; i < right_len[0]; ++i) {
       if (ev[i].type() != kEnd) {
         child.bounds[ev[i].ref()] = s_.bounds[ev[i].ref()];
-        child.poly_at[ev[i].ref()] = copy_poly(s_.poly_at[ev[i].ref()]);
+        // (This split's straddlers get their right parts below.)
+        if ((s_.side[ev[i].ref()] & 3u) != kBoth) child.poly_at[ev[i].ref()] = copy_poly(s_.poly_at[ev[i].ref()]);
       }
     }
     for (std::size_t k = restore; k < restore_end; ++k) {

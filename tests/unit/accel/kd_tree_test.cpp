@@ -878,6 +878,38 @@ TEST(KdTree, EventSweepVectorCodeBuildsTheScalarTree) {
       0));
 }
 
+TEST(KdTree, KeptPolygonsAndUnmovedEventsBuildTheSameTree) {
+  // With clipping, each split cuts a straddler's polygon kept from its last split at one plane
+  // (KdBuildOptions::keep_clipped_polygons) and leaves its unmoved events where they are in the
+  // children's lists (keep_unmoved_events). Against clipping the triangle to every node's cell
+  // and making every event anew: node for node the same tree, scalar and vector code, one and
+  // two threads (forked children get copies of the polygons). The soups straddle a lot: long
+  // slivers, a sphere on a grid, planar piles, signed zeros, and a 20000-triangle soup of long
+  // triangles (binned levels above its blocks).
+  const std::vector<Soup> soups = {random_soup(7, 5000, 0.05f), sphere_and_grid(24), sliver_fan(13, 3000),
+                                   planar_piles(17, 3000),      signed_zero_cells(),  random_soup(43, 20000, 0.3f)};
+  for (const Soup& s : soups) {
+    for (const bool simd : {false, true}) {
+      for (const int threads : {1, 2}) {
+        SCOPED_TRACE(testing::Message() << s.triangles.size() << " triangles, simd " << simd << ", threads " << threads);
+        KdBuildOptions fresh;
+        fresh.simd = simd;
+        fresh.threads = threads;
+        fresh.keep_clipped_polygons = false;
+        fresh.keep_unmoved_events = false;
+        const KdTree a = KdTree::build(s.positions, s.triangles, fresh);
+        for (const auto& [polygons, events] : {std::pair{true, false}, std::pair{false, true}, std::pair{true, true}}) {
+          SCOPED_TRACE(testing::Message() << "kept polygons " << polygons << ", unmoved events " << events);
+          KdBuildOptions kept = fresh;
+          kept.keep_clipped_polygons = polygons;
+          kept.keep_unmoved_events = events;
+          expect_same_tree(a, KdTree::build(s.positions, s.triangles, kept));
+        }
+      }
+    }
+  }
+}
+
 TEST(KdTree, BinnedLevelsVectorBinsBuildTheScalarTree) {
   // Above KdBuildOptions::exact_below references a node is split by the binned SAH, whose bins
   // of 16 references at a time come from vector code where the CPU has AVX-512 (the boxes
