@@ -2039,16 +2039,31 @@ class BlockBuilder {
   }
 
  private:
-  // Writes the events of a reference with bounds `b` (inside the node's box) along `axis`;
-  // returns how many (1 or 2).
+  // Writes the events of a reference with bounds `b` (inside the node's box) along `axis`, but
+  // for those that `kept` says stay where they are (a straddler's part's 2 keep bits,
+  // StraddlerKeep: start or planar event, end); returns how many (0 to 2).
   // Positions are written with -0 as +0 (x + 0 is +0 for either zero): both compare equal, so
   // which one a group of events at zero started with would otherwise decide the sign of a
   // split plane there, and that first event depends on which references a node holds.
+  static std::size_t add_events(Event* ev, const Aabb& b, int axis, std::uint32_t ref, std::uint32_t kept = 0) {
+    const std::uint32_t code = ref << 2;
+    const float lo = b.lo[axis] + 0.0f, hi = b.hi[axis] + 0.0f;
+    if (lo == hi) {
+      if ((kept & 1u) != 0) return 0;
+      ev[0] = Event{lo, code | kPlanar};
+      return 1;
+    }
+    std::size_t n = 0;
+    if ((kept & 1u) == 0) ev[n++] = Event{lo, code | kStart};
+    if ((kept & 2u) == 0) ev[n++] = Event{hi, code | kEnd};
+    return n;
+  }
+
   // StraddlerKeep: which of a straddler's events its parts keep unchanged, 4 bits per axis at
   // 4 * axis: the left part's start (or planar event), its end, the right part's start (or
   // planar event), its end. A part keeps an event where it has one at the same position as
   // before: both not planar with the same lower (upper) bound, or both planar at the same
-  // position. The rest are made anew (add_changed_events) and merged in. (On spd-rings 55% of
+  // position. The rest are made anew (add_events with the part's bits) and merged in. (On spd-rings 55% of
   // a straddler's events on the other axes, and on the split axis its start on the left and
   // its end on the right, stay.) Where an event stays, it keeps its place in the list rather
   // than following the kept events of its position: nothing in the build depends on the order
@@ -2073,35 +2088,8 @@ class BlockBuilder {
     return bits;
   }
   // The keep bits the split axis's lists assume: the left part's start, the right part's end.
-  static constexpr std::uint32_t kKeepSplitAxis[3] = {0x9u, 0x9u << 4, 0x9u << 8};
+  static constexpr std::uint32_t keep_split_axis(int axis) { return 0x9u << (4 * axis); }
 
-  // add_events for the events of a part that `kept` (its 2 keep bits: start or planar, end)
-  // does not keep; returns how many (0 to 2).
-  static std::size_t add_changed_events(Event* ev, const Aabb& b, int axis, std::uint32_t ref, std::uint32_t kept) {
-    const std::uint32_t code = ref << 2;
-    const float lo = b.lo[axis] + 0.0f, hi = b.hi[axis] + 0.0f;
-    if (lo == hi) {
-      if ((kept & 1u) != 0) return 0;
-      ev[0] = Event{lo, code | kPlanar};
-      return 1;
-    }
-    std::size_t n = 0;
-    if ((kept & 1u) == 0) ev[n++] = Event{lo, code | kStart};
-    if ((kept & 2u) == 0) ev[n++] = Event{hi, code | kEnd};
-    return n;
-  }
-
-  static std::size_t add_events(Event* ev, const Aabb& b, int axis, std::uint32_t ref) {
-    const std::uint32_t code = ref << 2;
-    const float lo = b.lo[axis] + 0.0f, hi = b.hi[axis] + 0.0f;
-    if (lo == hi) {
-      ev[0] = Event{lo, code | kPlanar};
-      return 1;
-    }
-    ev[0] = Event{lo, code | kStart};
-    ev[1] = Event{hi, code | kEnd};
-    return 2;
-  }
 
   void node(std::size_t index, const std::size_t off[3], const std::size_t len[3], std::size_t count, const Aabb& box,
             int depth) {
@@ -2314,7 +2302,7 @@ class BlockBuilder {
                                        ? straddler_keep(bounds[ref], signless(clip_left[k]), signless(clip_right[k]))
                                        : 0u;  // all made anew: the split axis's kept ones taken out again
         side[ref] = kBoth | bits << 2;
-        drop |= (bits & kKeepSplitAxis[split.axis]) != kKeepSplitAxis[split.axis];
+        drop |= (bits & keep_split_axis(split.axis)) != keep_split_axis(split.axis);
       }
     }
     for (int axis = 0; axis < 3; ++axis) {
@@ -2353,9 +2341,9 @@ class BlockBuilder {
       std::size_t n_new_left = 0, n_new_right = 0;
       for (std::size_t k = 0; k < straddlers.size(); ++k) {
         const std::uint32_t bits = side[straddlers[k]] >> (2 + 4 * axis);
-        n_new_left += add_changed_events(new_left.data() + n_new_left, clip_left[k], axis, straddlers[k], bits & 3u);
+        n_new_left += add_events(new_left.data() + n_new_left, clip_left[k], axis, straddlers[k], bits & 3u);
         n_new_right +=
-            add_changed_events(new_right.data() + n_new_right, clip_right[k], axis, straddlers[k], (bits >> 2) & 3u);
+            add_events(new_right.data() + n_new_right, clip_right[k], axis, straddlers[k], (bits >> 2) & 3u);
       }
       sort_events(new_left.data(), n_new_left, s_.sort_buffer, ctx_);
       sort_events(new_right.data(), n_new_right, s_.sort_buffer, ctx_);
@@ -2764,7 +2752,9 @@ class TopBuilder {
         alignas(64) std::int32_t at[6][16];
         for (; i < end; i += 16) {
           const std::size_t m = std::min<std::size_t>(16, end - i);
-          for (std::size_t j = 0; j < m; j += 4) box_ahead(tris, i + j, end);  // a line holds 2-3 boxes
+          // One box in four asked for: a node's triangle ids ascend, so near the root neighbouring
+          // boxes share a line (2-3 a line); deeper down they do not (not measured against all 16).
+          for (std::size_t j = 0; j < m; j += 4) box_ahead(tris, i + j, end);
           bin_bounds16_avx512(ctx_.tri_box.data(), tris.data() + i, m, box, scale, bins, at);
           for (std::size_t j = 0; j < m; ++j) {
             Bins& to = (j & 1u) != 0 ? odd : b;
