@@ -509,15 +509,17 @@ inline void clip_to_box(const glm::vec3& lo, const glm::vec3& hi, std::uint32_t 
 /// component (the caller falls back to N = 1 otherwise). Directions with a zero component give
 /// infinite reciprocals; a split plane through such a ray's origin gives t = NaN, and then the
 /// lane visits both children with its whole segment (min/max keep the segment on NaN).
-/// Test is WaldTest or WatertightTest, matching the tree's records. kFarFirst (occlusion only):
-/// where both children are entered, the one farther along the rays first; the children and
-/// their segments are the same, so the same leaves are visited until every lane has a hit, and
-/// the answer is the same (ShadowOrder). Packets (N > 1) never enter a child its parent marks as
+/// Test is WaldTest or WatertightTest, matching the tree's records. kWalk (occlusion only):
+/// where both children are entered, the one nearer along the rays first (Near), the farther one
+/// (Far), or the denser one (Dense, KdNode::denser; the far one where some lane's segment
+/// starts at its origin, so in the near child: a surface rarely shadows itself); the children
+/// and their segments are the same, so the same leaves are visited until every lane has a hit,
+/// and the answer is the same (ShadowOrder). Packets (N > 1) never enter a child its parent marks as
 /// an empty leaf (KdNode::child_empty): it holds nothing to test.
-template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
+template <int N, bool kOcclusion, template <int> class Test, ShadowWalk kWalk = ShadowWalk::Near>
 void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
                        HitPacket<N>& hit, vbool<N>& occluded) {
-  static_assert(kOcclusion || !kFarFirst, "closest hits are found near to far");
+  static_assert(kOcclusion || kWalk == ShadowWalk::Near, "closest hits are found near to far");
   const KdNode* nodes = tree.nodes().data();
   const TriRecord* records = tree.leaf_records().data();
   const Aabb& box = tree.bounds();
@@ -651,7 +653,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const vbool<N> go_near = active & (near <= reach(near_end));
       const vbool<N> go_far = active & (far_start <= reach(far));
       // One decision per node for the whole packet. Where both children are entered, the far
-      // one is stacked (or, far-first, the near one). A child that is an empty leaf holds
+      // one is stacked (or, by kWalk, the near one). A child that is an empty leaf holds
       // nothing to test: it is passed by, not entered (its lanes would only pop the stack
       // there), so the same triangles are tested in the same order.
       // (Packets only: a single ray's empty-leaf visit is a few scalar instructions and mostly
@@ -673,7 +675,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         enter(near_child, sign);
         far = near_end;
         active = go_near;
-      } else if constexpr (kFarFirst) {
+      } else if (kWalk == ShadowWalk::Far ||
+                 (kWalk == ShadowWalk::Dense &&
+                  (node.denser() != sign || any(go_near & (near <= ray.t_min))))) {
         stats.push();
         Entry& e = stack[depth++];
         near.store(e.near);
@@ -806,10 +810,10 @@ struct RayLanes {
 };
 
 /// One lane of a packet traced alone (N = 1), its result written back into the packet.
-template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
+template <int N, bool kOcclusion, template <int> class Test, ShadowWalk kWalk = ShadowWalk::Near>
 inline void trace_lane(const KdTree& tree, const RayPacket<N>& ray, int i, HitPacket<N>& hit, vbool<N>& occluded) {
   on_lane<N, kOcclusion>(ray, i, hit, occluded, [&](const RayPacket<1>& r, HitPacket<1>& h, vbool<1>& occ) {
-    traverse_coherent<1, kOcclusion, Test, kFarFirst>(tree, r, vbool<1>(true), h, occ);
+    traverse_coherent<1, kOcclusion, Test, kWalk>(tree, r, vbool<1>(true), h, occ);
   });
 }
 
@@ -827,12 +831,12 @@ inline unsigned octant_group(unsigned lanes, unsigned sx, unsigned sy, unsigned 
 /// octants (reflections off curved surfaces, shadow rays from scattered hits) is regrouped:
 /// each octant's lanes traverse as one masked packet, and an octant with a single lane goes
 /// alone through the N = 1 kernel. Lanes never interact, so the bits are the same either way.
-template <int N, bool kOcclusion, template <int> class Test, bool kFarFirst = false>
+template <int N, bool kOcclusion, template <int> class Test, ShadowWalk kWalk = ShadowWalk::Near>
 void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
                   vbool<N>& occluded) {
   if (tree.empty() || none(active)) return;
   if constexpr (N == 1) {
-    traverse_coherent<N, kOcclusion, Test, kFarFirst>(tree, ray, active, hit, occluded);
+    traverse_coherent<N, kOcclusion, Test, kWalk>(tree, ray, active, hit, occluded);
   } else {
     const unsigned sx = bits(sign_bit(ray.dir[0]));
     const unsigned sy = bits(sign_bit(ray.dir[1]));
@@ -843,9 +847,9 @@ void trace_packet(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, 
       const unsigned group = octant_group(left, sx, sy, sz, first);  // the first remaining lane's
       left &= ~group;
       if ((group & (group - 1)) == 0) {
-        trace_lane<N, kOcclusion, Test, kFarFirst>(tree, ray, first, hit, occluded);
+        trace_lane<N, kOcclusion, Test, kWalk>(tree, ray, first, hit, occluded);
       } else {
-        traverse_coherent<N, kOcclusion, Test, kFarFirst>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
+        traverse_coherent<N, kOcclusion, Test, kWalk>(tree, ray, vbool<N>::from_bits(group), hit, occluded);
       }
     }
   }
@@ -866,24 +870,34 @@ inline void intersect(const KdTree& tree, const RayPacket<N>& ray, vbool<N> acti
   }
 }
 
-/// Occlusion (shadow) queries: stops at the first hit of each lane. `far_first`: each ray's
-/// leaves are visited from the far end of its segment (the same answer, ShadowOrder).
+/// trace_packet for occlusion in the order `walk`.
+template <int N, template <int> class Test>
+inline void occluded_walk(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, ShadowWalk walk,
+                          HitPacket<N>& unused, vbool<N>& occ) {
+  switch (walk) {
+    case ShadowWalk::Far:
+      trace_packet<N, true, Test, ShadowWalk::Far>(tree, ray, active, unused, occ);
+      return;
+    case ShadowWalk::Dense:
+      trace_packet<N, true, Test, ShadowWalk::Dense>(tree, ray, active, unused, occ);
+      return;
+    case ShadowWalk::Near:
+      break;
+  }
+  trace_packet<N, true, Test, ShadowWalk::Near>(tree, ray, active, unused, occ);
+}
+
+/// Occlusion (shadow) queries: stops at the first hit of each lane. `walk`: the order each
+/// ray's leaves are visited in (the same answer, ShadowOrder).
 template <int N>
-inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active, bool far_first = false) {
+inline vbool<N> occluded(const KdTree& tree, const RayPacket<N>& ray, vbool<N> active,
+                         ShadowWalk walk = ShadowWalk::Near) {
   vbool<N> occ(false);
   HitPacket<N> unused;  // not read by occlusion queries
   if (tree.watertight()) {
-    if (far_first) {
-      trace_packet<N, true, WatertightTest, true>(tree, ray, active, unused, occ);
-    } else {
-      trace_packet<N, true, WatertightTest, false>(tree, ray, active, unused, occ);
-    }
+    occluded_walk<N, WatertightTest>(tree, ray, active, walk, unused, occ);
   } else {
-    if (far_first) {
-      trace_packet<N, true, WaldTest, true>(tree, ray, active, unused, occ);
-    } else {
-      trace_packet<N, true, WaldTest, false>(tree, ray, active, unused, occ);
-    }
+    occluded_walk<N, WaldTest>(tree, ray, active, walk, unused, occ);
   }
   return occ;
 }

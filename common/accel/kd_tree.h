@@ -21,10 +21,12 @@
 
 namespace rtc {
 
-/// 8 bytes. Inner node: bits = (index of the left child << 4) | (empty children << 2) | axis
-/// (0, 1, 2), children adjacent (right = left + 1), `split` the plane position; bit c of the
-/// empty children (bits 2-3) is set when child left + c is a leaf without triangles, so a walk
-/// can pass it by without loading it. Leaf: bits = (offset into KdTree::prim_refs << 2) | 3,
+/// 8 bytes. Inner node: bits = (index of the left child << 5) | (denser child << 4) | (empty
+/// children << 2) | axis (0, 1, 2), children adjacent (right = left + 1), `split` the plane
+/// position; bit c of the empty children (bits 2-3) is set when child left + c is a leaf
+/// without triangles, so a walk can pass it by without loading it; the denser child (bit 4,
+/// denser()) is the one a ray crossing both more likely stops in, by the build's estimate
+/// (KdBuildOptions::mark_denser), which the dense shadow order enters first. Leaf: bits = (offset into KdTree::prim_refs << 2) | 3,
 /// `count` the number of triangle references (tri_count()), with kBoxed set when the slot
 /// before the first holds the leaf's LeafBox (has_box()).
 struct KdNode {
@@ -34,8 +36,8 @@ struct KdNode {
     std::uint32_t count = 0;
   };
 
-  /// The most nodes a tree may have: inner nodes keep 28 bits for the left child's index.
-  static constexpr std::uint64_t kMaxNodes = std::uint64_t{1} << 28;
+  /// The most nodes a tree may have: inner nodes keep 27 bits for the left child's index.
+  static constexpr std::uint64_t kMaxNodes = std::uint64_t{1} << 27;
   /// A leaf's `count` bit that says it has a LeafBox (counts stay below 2^30).
   static constexpr std::uint32_t kBoxed = 1u << 31;
 
@@ -43,7 +45,7 @@ struct KdNode {
   [[nodiscard]] static KdNode inner(std::uint64_t left, int axis, float split, bool left_empty = false,
                                     bool right_empty = false) {
     KdNode n;
-    n.bits = (static_cast<std::uint32_t>(left) << 4) | (left_empty ? 4u : 0u) | (right_empty ? 8u : 0u) |
+    n.bits = (static_cast<std::uint32_t>(left) << 5) | (left_empty ? 4u : 0u) | (right_empty ? 8u : 0u) |
              static_cast<std::uint32_t>(axis);
     n.split = split;
     return n;
@@ -60,7 +62,10 @@ struct KdNode {
   [[nodiscard]] bool is_leaf() const { return (bits & 3u) == 3u; }
   [[nodiscard]] bool is_empty_leaf() const { return is_leaf() && count == 0; }
   [[nodiscard]] int axis() const { return static_cast<int>(bits & 3u); }
-  [[nodiscard]] std::uint32_t left() const { return bits >> 4; }
+  [[nodiscard]] std::uint32_t left() const { return bits >> 5; }
+  /// Inner nodes: which child (0: left, 1: right) a ray crossing both more likely stops in.
+  [[nodiscard]] std::uint32_t denser() const { return (bits >> 4) & 1u; }
+  void set_denser(std::uint32_t c) { bits = (bits & ~16u) | ((c & 1u) << 4); }
   /// Inner nodes: whether child left() + c (c = 0, 1) is an empty leaf.
   [[nodiscard]] bool child_empty(std::uint32_t c) const { return (bits & (4u << c)) != 0; }
   [[nodiscard]] std::uint32_t prim_offset() const { return bits >> 2; }
@@ -303,6 +308,15 @@ struct KdBuildOptions {
   /// anew. Exactly the same trees (only the order of events at one position differs, which the
   /// build never reads; tested); for tests and A/B runs.
   bool keep_unmoved_events = true;
+  /// Each inner node marks its denser child (KdNode::denser): the one whose triangles a ray
+  /// crossing the node more likely meets, estimated as the chance that a ray crossing the node
+  /// crosses the child (their surface areas' ratio) times the chance that a ray crossing the
+  /// child meets a triangle in it, 1 - exp(-(triangle area) / (surface area)) at a leaf (a
+  /// closed surface's area is crossed twice per ray through it, a flat triangle's once from
+  /// either side: Crofton) and combined over the children as if independent above. Shadow
+  /// rays walked in the dense order (ShadowOrder::Dense) enter it first. It changes no answer.
+  /// False: every bit 0 (for A/B runs).
+  bool mark_denser = true;
 
   /// mask_below with -1 resolved. With clipping 64: larger bit-mask subtrees lose the clipping
   /// below their roots, and at 128 spd-tree's 16-wide primary rays were 0.95x (builds 0.90x,

@@ -3089,6 +3089,47 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
   add_stats(*t.child[1], right_box, depth + 1, options, scale, stats, cost_area);
 }
 
+// KdBuildOptions::mark_denser over the placed tree: returns the chance that a ray crossing
+// node i (cell `cell`) meets a triangle in it, and marks each inner node's denser child. The
+// top `parallel_depth` levels split into tasks; the floats do not depend on them (each node's
+// value comes from its own children's only).
+double mark_denser(KdNode* nodes, const std::uint32_t* refs, const float* tri_area, std::uint32_t i, const Aabb& cell,
+                   int parallel_depth) {
+  const auto surface = [](const Aabb& b) {
+    const glm::dvec3 d = glm::dvec3(b.hi) - glm::dvec3(b.lo);
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+  };
+  KdNode& n = nodes[i];
+  const double cell_area = surface(cell);
+  if (n.is_leaf()) {
+    const std::uint32_t* r = refs + n.prim_offset();
+    double area = 0.0;
+    for (std::uint32_t k = 0, count = n.tri_count(); k < count; ++k) area += static_cast<double>(tri_area[r[k]]);
+    if (area <= 0.0) return 0.0;
+    return cell_area > 0.0 ? 1.0 - std::exp(-area / cell_area) : 1.0;
+  }
+  const int axis = n.axis();
+  Aabb left = cell, right = cell;
+  left.hi[axis] = n.split;
+  right.lo[axis] = n.split;
+  double alpha[2];
+  if (parallel_depth > 0) {
+    tbb::parallel_invoke([&] { alpha[0] = mark_denser(nodes, refs, tri_area, n.left(), left, parallel_depth - 1); },
+                         [&] { alpha[1] = mark_denser(nodes, refs, tri_area, n.left() + 1, right, parallel_depth - 1); });
+  } else {
+    alpha[0] = mark_denser(nodes, refs, tri_area, n.left(), left, 0);
+    alpha[1] = mark_denser(nodes, refs, tri_area, n.left() + 1, right, 0);
+  }
+  // The chance that a ray crossing this node crosses child c and meets a triangle there (a
+  // flat cell's share as its parent's when the parent is flat too).
+  const auto share = [&](const Aabb& child) {
+    return cell_area > 0.0 ? std::min(surface(child) / cell_area, 1.0) : 1.0;
+  };
+  const double w0 = share(left) * alpha[0], w1 = share(right) * alpha[1];
+  n.set_denser(w1 > w0 ? 1u : 0u);
+  return 1.0 - (1.0 - w0) * (1.0 - w1);
+}
+
 constexpr std::size_t kHugePage = std::size_t{2} << 20;
 
 // alloc_pages' alignment and size for a request: huge-page aligned from 2 MiB up, and a multiple
@@ -3378,6 +3419,8 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   // leaf order (leaf_records_), made once the leaves are known.
   RawArray<TriRecord> records(triangles.size());
   RawArray<Aabb> tri_box(triangles.size());
+  // Each triangle's area, for mark_denser.
+  RawArray<float> tri_area(options.mark_denser ? triangles.size() : 0);
   // Chunks of kRecordChunk triangles, each with the box of its triangles and their count
   // (degenerate ones left out), merged in chunk order below: the root box a loop over the
   // triangles in order makes (the min and max keep the first of equal values), with no serial
@@ -3418,6 +3461,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
         box.extend(b);
         box.extend(c);
       }
+      if (options.mark_denser) tri_area[i] = 0.5f * glm::length(glm::cross(b - a, c - a));
       if (!box.empty()) {  // as the tree's references are chosen below
         chunk_box[chunk].extend(box);
         ++chunk_valid[chunk];
@@ -3469,7 +3513,7 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
-  if (node_total >= KdNode::kMaxNodes) throw Error("kd-tree: more than 2^28 nodes (the 8-byte node format's limit)");
+  if (node_total >= KdNode::kMaxNodes) throw Error("kd-tree: more than 2^27 nodes (the 8-byte node format's limit)");
   if (top->refs >= (1u << 30)) {
     throw Error("kd-tree: more than 2^30 triangle references (the 8-byte node format's limit)");
   }
@@ -3489,6 +3533,12 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   top.reset();
 
   tri_box = RawArray<Aabb>();  // the build's last use: a smaller peak for what follows
+  if (options.mark_denser) {
+    // Tasks over the top 6 levels where the tree is large enough to pay for them.
+    const int parallel_depth = tree.nodes_.size() >= (std::size_t{1} << 16) && threads > 1 ? 6 : 0;
+    mark_denser(tree.nodes_.data(), tree.prim_refs_.data(), tri_area.data(), 0, root, parallel_depth);
+    tri_area = RawArray<float>();
+  }
   // Large arrays are written with streaming stores: their lines are not read first (spd-rings'
   // 116 MB at 2 threads: this loop 8.9 -> 6.1 ms). At 32 MiB an array is far past the L2 the
   // walks run from (trace_experiments.md, session 37), so a normal store's cached copy would

@@ -2,6 +2,8 @@
 // two ends. Not compiled per ISA: plain integer and float arithmetic, the same on every ISA.
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <string>
@@ -14,15 +16,23 @@
 namespace rtc {
 
 /// The order in which an occlusion (shadow) query visits the leaves along each ray: from the
-/// ray's origin (Near) or from the far end of its segment (Far). The answer is the same either
-/// way: a lane is occluded when any triangle in the leaves its segment touches hits it within
-/// (t_min, t_max), each child's segment is computed from its parent's whatever the order, and
-/// the walk stops early only once every lane has a hit. Only the cost differs. Shadow rays
-/// start on a surface, where the surface's own leaves rarely block them; on scenes whose
-/// blockers lie far from the lit points (a mountain's ridges, the rings, the gears) the far end
-/// finds them sooner, where clustered detail shadows itself (a sphereflake, a tree's leaves)
-/// the near end does. Auto picks per run of packets (ShadowOrderChooser).
-enum class ShadowOrder : std::uint8_t { Auto, Near, Far };
+/// ray's origin (Near), from the far end of its segment (Far), or, at each node where both
+/// children are entered, the denser child first (Dense: the one whose triangles a ray crossing
+/// the node more likely meets, KdNode::denser, except that where a ray starts in the near child
+/// the far one goes first). The answer is the same every way: a lane is occluded when any
+/// triangle in the leaves its segment touches hits it within (t_min, t_max), each child's
+/// segment is computed from its parent's whatever the order, and the walk stops early only once
+/// every lane has a hit. Only the cost differs. Shadow rays start on a surface, where the
+/// surface's own leaves rarely block them; on scenes whose blockers lie far from the lit points
+/// (a mountain's ridges, the rings, the gears) the far end finds them sooner, where clustered
+/// detail shadows itself (a tree's leaves) the near end does, and where blockers cluster in
+/// some cells and not in others (a sphereflake's spheres) the dense order does. Auto picks per
+/// run of packets (ShadowOrderChooser).
+enum class ShadowOrder : std::uint8_t { Auto, Near, Far, Dense };
+
+/// The walks a ShadowOrderChooser picks among (ShadowOrder but Auto), numbered for its tally.
+enum class ShadowWalk : std::uint8_t { Near = 0, Far = 1, Dense = 2 };
+inline constexpr int kShadowWalks = 3;
 
 [[nodiscard]] inline const char* shadow_order_name(ShadowOrder order) {
   switch (order) {
@@ -30,48 +40,81 @@ enum class ShadowOrder : std::uint8_t { Auto, Near, Far };
       return "near";
     case ShadowOrder::Far:
       return "far";
+    case ShadowOrder::Dense:
+      return "dense";
     case ShadowOrder::Auto:
       break;
   }
   return "auto";
 }
 
-/// "auto", "near" or "far"; anything else is an rtc::Error naming the text.
+/// "auto", "near", "far" or "dense"; anything else is an rtc::Error naming the text.
 [[nodiscard]] inline ShadowOrder parse_shadow_order(std::string_view text) {
   if (text == "auto") return ShadowOrder::Auto;
   if (text == "near") return ShadowOrder::Near;
   if (text == "far") return ShadowOrder::Far;
-  throw Error("shadow order '" + std::string(text) + "': expected auto, near or far");
+  if (text == "dense") return ShadowOrder::Dense;
+  throw Error("shadow order '" + std::string(text) + "': expected auto, near, far or dense");
 }
 
-/// Time and rays of shadow packets walked in each order, summed over many runs of packets and
-/// shared by threads (a renderer keeps one per light for all its tiles and frames): a packet's
-/// time varies far more than the two orders' means differ (standard deviations 2-15 times the
-/// mean on the shared scenes), so one tile's packets alone cannot tell the orders apart.
+/// The walk a fixed order takes (Auto: Near).
+[[nodiscard]] inline ShadowWalk shadow_walk_of(ShadowOrder order) {
+  switch (order) {
+    case ShadowOrder::Far:
+      return ShadowWalk::Far;
+    case ShadowOrder::Dense:
+      return ShadowWalk::Dense;
+    case ShadowOrder::Near:
+    case ShadowOrder::Auto:
+      break;
+  }
+  return ShadowWalk::Near;
+}
+
+/// The fixed order that takes walk `walk`.
+[[nodiscard]] inline ShadowOrder shadow_order_of(ShadowWalk walk) {
+  switch (walk) {
+    case ShadowWalk::Far:
+      return ShadowOrder::Far;
+    case ShadowWalk::Dense:
+      return ShadowOrder::Dense;
+    case ShadowWalk::Near:
+      break;
+  }
+  return ShadowOrder::Near;
+}
+
+/// Time and rays of shadow packets walked in each order ([ShadowWalk]), summed over many runs
+/// of packets and shared by threads (a renderer keeps one per light for all its tiles and
+/// frames): a packet's time varies far more than the orders' means differ (standard deviations
+/// 2-15 times the mean on the shared scenes), so one tile's packets alone cannot tell the
+/// orders apart.
 struct ShadowOrderTally {
-  std::atomic<std::uint64_t> ticks[2] = {0, 0};  // [far_first]
-  std::atomic<std::uint64_t> rays[2] = {0, 0};
+  std::atomic<std::uint64_t> ticks[kShadowWalks] = {0, 0, 0};
+  std::atomic<std::uint64_t> rays[kShadowWalks] = {0, 0, 0};
   std::atomic<std::uint32_t> runs = 0;  // runs started
-  std::atomic<bool> far_preferred = false;  // the order runs take (but exploring ones)
+  std::atomic<std::uint8_t> preferred = 0;  // the walk runs take (but exploring ones): an index into kAutoWalks
 };
 
 /// Picks the walk order of a run of shadow packets (one light's rays over a tile, say): one
 /// order for the whole run, from the mean time per ray each order took in the shared tally's
 /// runs, decided when the run's first packet asks (a chooser no packet asks costs nothing and
-/// is not counted). Until both orders have kMinRays rays there, a run takes the one with
-/// fewer; then the preferred one, except every kExplore-th run, which takes the other so that
-/// both means stay current (every kExploreRare-th run where the other's mean is kApart times the
-/// preferred one's or more: there an exploring run costs most and tells least; spd-mount-s10's
-/// near-first shadow packets take 1.5 times as long as its far-first ones, and its 16-wide
-/// shadow rays ran 1.055x as fast exploring every 64th run as every 16th). The tally's
-/// preferred order changes only when the other's mean is kMargin below its own: switching
-/// costs a warm-up, so two orders within noise of each other
-/// (spd-tree) should not take turns. A run times its packets after its first kWarmUp (every
-/// one in exploring runs and before kMinRays, every kTimeEvery-th otherwise) and flush() adds
-/// them to the tally. With a fixed order (Near, Far), or without a tally, it always answers
-/// one order (Near for Auto without a tally) and times nothing.
+/// is not counted). Until every order has kMinRays rays there, a run takes the one with fewest
+/// (the first of those from run number mod 3, so that runs started together spread). Then the
+/// preferred one, except every kExplore-th run, which takes one of the other two, in turn, so
+/// that their means stay current: each is explored every 2 kExplore-th run, or every 2
+/// kExploreRare-th where its mean is kApart times the preferred one's or more (there an
+/// exploring run costs most and tells least; spd-mount-s10's near-first shadow packets take 1.5
+/// times as long as its far-first ones, and its 16-wide shadow rays ran 1.055x as fast
+/// exploring every 64th run as every 16th). The tally's preferred order changes only when the
+/// fastest other's mean is kMargin below its own: switching costs a warm-up, so two orders
+/// within noise of each other (spd-tree) should not take turns. A run times its packets after
+/// its first kWarmUp (every one in exploring runs and before kMinRays, every kTimeEvery-th
+/// otherwise) and flush() adds them to the tally. With a fixed order (Near, Far, Dense), or
+/// without a tally, it always answers one order (Near for Auto without a tally) and times
+/// nothing.
 ///
-/// Use: `far_first = next()` before a packet's walk, `done(rays)` after it.
+/// Use: `walk = next()` before a packet's walk, `done(rays)` after it.
 ///
 /// Why runs and warm-up: a packet walked in the order the packets before it did not take ran
 /// 1.5 times slower than in a run of its own order (spd-mount-s10: far-first 752 ticks per ray
@@ -91,19 +134,24 @@ class ShadowOrderChooser {
   static constexpr std::uint32_t kTimeEvery = 8;  ///< of the runs taking the preferred order
   static constexpr std::uint64_t kMinRays = 2048;
   static constexpr double kMargin = 0.05;
+  /// The walks Auto picks among, the first preferred until another is kMargin faster. Not Near:
+  /// Dense walks near-first wherever that is the denser child, and on every view where Auto had
+  /// settled on Near it measured faster (in-process, against Auto over Near and Far: spd-balls'
+  /// 16-wide shadow packets 1.11-1.14x, spd-tree 1.02-1.03x).
+  static constexpr std::array<ShadowWalk, 2> kAutoWalks = {ShadowWalk::Dense, ShadowWalk::Far};
 
   explicit ShadowOrderChooser(ShadowOrder mode = ShadowOrder::Auto, ShadowOrderTally* shared = nullptr)
-      : far_first_(mode == ShadowOrder::Far), shared_(mode == ShadowOrder::Auto ? shared : nullptr) {}
+      : walk_(shadow_walk_of(mode)), shared_(mode == ShadowOrder::Auto ? shared : nullptr) {}
 
-  /// The next packet's walk order (the run's): true for far-first. Starts the packet's clock
-  /// when it is one to time (timing()).
-  [[nodiscard]] bool next() {
-    if (shared_ == nullptr) return far_first_;
+  /// The next packet's walk order (the run's). Starts the packet's clock when it is one to time
+  /// (timing()).
+  [[nodiscard]] ShadowWalk next() {
+    if (shared_ == nullptr) return walk_;
     if (packets_ == 0) start_run();
     const std::uint32_t n = packets_++;
     timing_ = n >= kWarmUp && (n - kWarmUp) % time_every_ == 0;
     if (timing_) clock_ = __rdtsc();
-    return far_first_;
+    return walk_;
   }
 
   /// Whether the packet next() last answered for is timed.
@@ -124,7 +172,7 @@ class ShadowOrderChooser {
   void flush() {
     if (shared_ == nullptr) return;
     if (rays_ > 0) {
-      const int k = far_first_ ? 1 : 0;
+      const int k = static_cast<int>(walk_);
       shared_->ticks[k].fetch_add(ticks_, std::memory_order_relaxed);
       shared_->rays[k].fetch_add(rays_, std::memory_order_relaxed);
     }
@@ -133,43 +181,60 @@ class ShadowOrderChooser {
   }
 
   /// The run's order (decided by the first next()).
-  [[nodiscard]] bool far_first() const { return far_first_; }
+  [[nodiscard]] ShadowWalk walk() const { return walk_; }
 
  private:
   void start_run() {
     const std::uint32_t n = shared_->runs.fetch_add(1, std::memory_order_relaxed);
-    std::uint64_t ticks[2], rays[2];
-    for (int k = 0; k < 2; ++k) {
-      ticks[k] = shared_->ticks[k].load(std::memory_order_relaxed);
-      rays[k] = shared_->rays[k].load(std::memory_order_relaxed);
+    constexpr int kC = kAutoWalks.size();
+    std::uint64_t ticks[kC], rays[kC];
+    bool unsettled = false;
+    for (int c = 0; c < kC; ++c) {
+      const int k = static_cast<int>(kAutoWalks[c]);
+      ticks[c] = shared_->ticks[k].load(std::memory_order_relaxed);
+      rays[c] = shared_->rays[k].load(std::memory_order_relaxed);
+      unsettled = unsettled || rays[c] < kMinRays;
     }
-    if (rays[0] < kMinRays || rays[1] < kMinRays) {
-      far_first_ = rays[1] < rays[0] || (rays[1] == rays[0] && (n & 1u) != 0);
+    if (unsettled) {
+      int fewest = static_cast<int>(n % kC);
+      for (int j = 1; j < kC; ++j) {
+        const int c = static_cast<int>((n + j) % kC);
+        if (rays[c] < rays[fewest]) fewest = c;
+      }
+      walk_ = kAutoWalks[fewest];
       time_every_ = 1;
       return;
     }
-    // Whether order a's mean ticks per ray is below f times order b's, compared without
+    // Whether candidate a's mean ticks per ray is below f times candidate b's, compared without
     // division.
     const auto mean_below = [&](int a, int b, double f) {
       return static_cast<double>(ticks[a]) * static_cast<double>(rays[b]) <
              f * static_cast<double>(ticks[b]) * static_cast<double>(rays[a]);
     };
-    const bool far = shared_->far_preferred.load(std::memory_order_relaxed);
-    const int p = far ? 1 : 0;
-    const bool other_faster = mean_below(1 - p, p, 1.0 - kMargin);
-    const bool preferred = other_faster ? !far : far;
-    if (other_faster) shared_->far_preferred.store(preferred, std::memory_order_relaxed);
-    // The other order's mean at least kApart times the preferred one's (the preferred order
-    // as it stands now, after any switch above).
-    const int q = preferred ? 1 : 0;
-    const bool apart = !mean_below(1 - q, q, kApart);
-    const std::uint32_t every = apart ? kExploreRare : kExplore;
-    const bool explore = n % every == every - 1;
-    far_first_ = explore ? !preferred : preferred;
-    time_every_ = explore ? 1 : kTimeEvery;
+    int p = std::min<int>(shared_->preferred.load(std::memory_order_relaxed), kC - 1);
+    int fastest = p;
+    for (int c = 0; c < kC; ++c) {
+      if (mean_below(c, fastest, 1.0)) fastest = c;
+    }
+    if (fastest != p && mean_below(fastest, p, 1.0 - kMargin)) {
+      p = fastest;
+      shared_->preferred.store(static_cast<std::uint8_t>(p), std::memory_order_relaxed);
+    }
+    walk_ = kAutoWalks[p];
+    time_every_ = kTimeEvery;
+    if (n % kExplore != kExplore - 1) return;
+    // An exploring slot: the other candidates in turn; one kApart from the preferred one (as it
+    // stands now, after any switch above) only in every (kExploreRare / kExplore)-th of its slots.
+    const std::uint32_t slot = n / kExplore;
+    const int other = (p + 1 + static_cast<int>(slot % (kC - 1))) % kC;
+    const bool apart = !mean_below(other, p, kApart);
+    constexpr std::uint32_t kRare = kExploreRare / kExplore;
+    if (apart && (slot / (kC - 1)) % kRare != kRare - 1) return;
+    walk_ = kAutoWalks[other];
+    time_every_ = 1;
   }
 
-  bool far_first_;
+  ShadowWalk walk_;
   ShadowOrderTally* shared_;
   bool timing_ = false;
   std::uint32_t time_every_ = 1;

@@ -123,13 +123,13 @@ unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned 
   const RayPacket<N> p = rays.packet();
   unsigned blocked = 0;
   const FrameGeometry& g = *fs.geometry;
-  const bool far_first = order.next();
+  const ShadowWalk walk = order.next();
   for (std::size_t k = 0; k < g.trees.size(); ++k) {
     const unsigned open = lanes_mask & ~blocked;
     if (open == 0) break;
     const TreeSpace* space = g.space(k);
     blocked |= bits(occluded<N>(*g.trees[k], space == nullptr ? p : to_space(p, *space), vbool<N>::from_bits(open),
-                                far_first));
+                                walk));
     if (by_static != nullptr && g.first_tree_static && k == 0) *by_static = blocked;
   }
   order.done(static_cast<unsigned>(std::popcount(lanes_mask)));

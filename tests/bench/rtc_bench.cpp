@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -311,6 +312,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   int ab_mask_below = -2;  // -1 is a value (the default's rule)
   app.add_option("--ab-kd-mask-below", ab_mask_below, ab_help("mask-below"))->check(CLI::Range(-1, 256));
+  int ab_max_depth = -1;
+  app.add_option("--ab-kd-max-depth", ab_max_depth, ab_help("max-depth"))->check(CLI::Range(0, 60));
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
   int width = 0, height = 0;
@@ -333,9 +336,10 @@ int run(int argc, char** argv) {
   app.add_flag("--no-skip-empty", no_skip_empty, "full mode: trace primary rays that miss the scene's bounds too");
   std::string shadow_order_text = "auto";
   app.add_option("--shadow-order", shadow_order_text,
-                 "where shadow rays' kd-tree walks start: auto (chosen from the time each order took), near "
-                 "(the ray's origin), far (the light's end); the same answers in every order")
-      ->check(CLI::IsMember({"auto", "near", "far"}))
+                 "the order of shadow rays' kd-tree walks: auto (chosen from the time each order took), near "
+                 "(from the ray's origin), far (from the light's end), dense (the denser child first where both are "
+                 "entered); the same answers in every order")
+      ->check(CLI::IsMember({"auto", "near", "far", "dense"}))
       ->capture_default_str();
   app.add_flag("--kernel-ab", kernel_ab,
                "full mode: time the general and the specialised kernel, each with and without empty-space skipping, "
@@ -355,7 +359,7 @@ int run(int argc, char** argv) {
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =
       ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_footprint >= 0.0f ||
-      ab_mask_below >= -1;
+      ab_mask_below >= -1 || ab_max_depth >= 0;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -461,6 +465,7 @@ int run(int argc, char** argv) {
   if (ab_exact_below >= 0) ab_options.exact_below = ab_exact_below;
   if (ab_footprint >= 0.0f) ab_options.footprint_pixels = ab_footprint;
   if (ab_mask_below >= -1) ab_options.mask_below = ab_mask_below;
+  if (ab_max_depth >= 0) ab_options.max_depth = ab_max_depth;
   if (ab_tree) {
     fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
@@ -663,7 +668,10 @@ int run(int argc, char** argv) {
                      {"kd_exact_below", ab_options.exact_below},
                      {"kd_footprint", ab_options.footprint_pixels},
                      {"kd_mask_below", ab_options.effective_mask_below()},
+                     {"kd_max_depth", ab_options.max_depth},
                      {"kd_nodes", kd_ab.nodes},
+                     {"kd_depth", kd_ab.max_depth},
+                     {"kd_tris_per_leaf", kd_ab.mean_tris_per_leaf},
                      {"build_ms", kd_ab.build_ms},
                      {"kd_sah_cost", kd_ab.sah_cost},
                      {"kd_leaf_boxes", kd_ab.leaf_boxes},
@@ -675,11 +683,14 @@ int run(int argc, char** argv) {
         ab_differ = ab_differ || differ != 0;
         if (!json) {
           std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d --kd-footprint %g "
-                      "--kd-mask-below %d: packets %.2f M rays/s (%.3fx the first tree's, paired), single rays %.2f "
+                      "--kd-mask-below %d --kd-max-depth %d (%llu nodes, depth %d, %.2f triangles per non-empty "
+                      "leaf): packets %.2f M rays/s (%.3fx the first tree's, paired), single rays %.2f "
                       "(%.3fx)%s\n",
                       mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
                       static_cast<double>(ab_options.empty_cut), ab_options.exact_below,
-                      static_cast<double>(ab_options.footprint_pixels), ab_options.effective_mask_below(), mrays,
+                      static_cast<double>(ab_options.footprint_pixels), ab_options.effective_mask_below(),
+                      ab_options.max_depth, static_cast<unsigned long long>(kd_ab.nodes), kd_ab.max_depth,
+                      kd_ab.mean_tris_per_leaf, mrays,
                       packet_ratio, mrays_single, single_ratio, differ != 0 ? ", ANSWERS DIFFER" : "");
         }
       }
@@ -713,6 +724,28 @@ int run(int argc, char** argv) {
         std::printf("  %-7s rtc %d-wide packets: %8.2f M rays/s (%.1f ms for %llu rays); single rays: %.2f M rays/s\n",
                     mode.c_str(), kernels.packet_width, rays / ms_packet / 1e3, ms_packet,
                     static_cast<unsigned long long>(s.real), rays / ms_single / 1e3);
+      }
+      if (shadow && shadow_order == rtc::ShadowOrder::Auto) {
+        // What auto's tally of the packets' walks learnt over all repetitions: the time stamp
+        // counter's ticks per timed ray in each order, and the order it settled on.
+        nlohmann::json walks = nlohmann::json::object();
+        std::string line;
+        for (int w = 0; w < rtc::kShadowWalks; ++w) {
+          const rtc::ShadowOrder order = rtc::shadow_order_of(static_cast<rtc::ShadowWalk>(w));
+          const std::uint64_t n = tally_packets.rays[w].load(), t = tally_packets.ticks[w].load();
+          const double per_ray = n > 0 ? static_cast<double>(t) / static_cast<double>(n) : 0.0;
+          walks[rtc::shadow_order_name(order)] = {{"timed_rays", n}, {"ticks_per_ray", per_ray}};
+          line += fmt::format("{}{} {:.0f} ticks per ray ({} timed rays)", w > 0 ? ", " : "",
+                              rtc::shadow_order_name(order), per_ray, n);
+        }
+        const rtc::ShadowOrder preferred =
+            rtc::shadow_order_of(rtc::ShadowOrderChooser::kAutoWalks.at(tally_packets.preferred.load()));
+        walks["preferred"] = rtc::shadow_order_name(preferred);
+        out["shadow_walks"] = walks;
+        if (!json) {
+          std::printf("          auto's packet walks: %s; settled on %s\n", line.c_str(),
+                      rtc::shadow_order_name(preferred));
+        }
       }
       if (!shadow) {
         // Primary hits with their distances refined too, as rtc's stream API reports them (the

@@ -87,17 +87,20 @@ void run(const std::vector<RayQuery>& rays, const std::string& what, EdgeRoundin
     std::printf("%s: %s\n", name.c_str(), a.summary().c_str());
     EXPECT_EQ(a.mismatches, 0u) << name << ": " << a.summary();
     EXPECT_GT(a.hits, rays.size() / 10) << name << ": too few hits to mean much";
-    // Shadow rays walked from the light's end answer as those walked from the origin, also
-    // where leaf boxes drop lanes (packets and alone).
+    // Shadow rays walked from the light's end, or denser child first, answer as those walked
+    // from the origin, also where leaf boxes drop lanes (packets and alone).
     for (const bool packets : {true, false}) {
-      std::vector<std::uint8_t> near(rays.size()), far(rays.size());
+      std::vector<std::uint8_t> near(rays.size());
       trace_kernels().occluded_in_order(*tree, rays.data(), near.data(), rays.size(), packets, ShadowOrder::Near,
                                         nullptr);
-      trace_kernels().occluded_in_order(*tree, rays.data(), far.data(), rays.size(), packets, ShadowOrder::Far,
-                                        nullptr);
-      std::size_t differ = 0;
-      for (std::size_t i = 0; i < rays.size(); ++i) differ += (near[i] != 0) != (far[i] != 0);
-      EXPECT_EQ(differ, 0u) << name << (packets ? ", packets" : ", single rays") << ": far-first occlusion differs";
+      for (const ShadowOrder order : {ShadowOrder::Far, ShadowOrder::Dense}) {
+        std::vector<std::uint8_t> other(rays.size());
+        trace_kernels().occluded_in_order(*tree, rays.data(), other.data(), rays.size(), packets, order, nullptr);
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) differ += (near[i] != 0) != (other[i] != 0);
+        EXPECT_EQ(differ, 0u) << name << (packets ? ", packets" : ", single rays") << ": "
+                              << shadow_order_name(order) << " occlusion differs";
+      }
     }
   }
 }

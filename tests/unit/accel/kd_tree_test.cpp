@@ -910,6 +910,46 @@ TEST(KdTree, KeptPolygonsAndUnmovedEventsBuildTheSameTree) {
   }
 }
 
+TEST(KdTree, MarksTheDenserChild) {
+  // KdBuildOptions::mark_denser: a dense cluster (2000 triangles in a cube of side 2) beside a
+  // sparse one (3 triangles) four units away along x: the root splits between them, and its
+  // denser child is the dense cluster's, on either side. Off: the same tree with every mark 0.
+  for (const float side : {6.0f, -6.0f}) {
+    SCOPED_TRACE(testing::Message() << "sparse cluster at x " << side);
+    Soup s = random_soup(5, 2000, 0.2f);
+    const Soup sparse = random_soup(6, 3, 0.2f);
+    const auto base = static_cast<unsigned>(s.positions.size());
+    for (const glm::vec3& p : sparse.positions) s.positions.push_back(p + glm::vec3(side, 0.0f, 0.0f));
+    for (const glm::uvec3& t : sparse.triangles) s.triangles.push_back(t + glm::uvec3(base));
+    const KdTree tree = KdTree::build(s.positions, s.triangles, KdBuildOptions{});
+    const KdNode root = tree.nodes()[0];
+    ASSERT_FALSE(root.is_leaf());
+    ASSERT_EQ(root.axis(), 0);
+    // Between the clusters (x within 1.2 of 0 and of `side`).
+    ASSERT_GT(std::abs(root.split), 1.0f);
+    ASSERT_LT(std::abs(root.split), 5.0f);
+    ASSERT_EQ(root.split > 0.0f, side > 0.0f);
+    EXPECT_EQ(root.denser(), side > 0 ? 0u : 1u);  // the child on the dense cluster's side
+    KdBuildOptions off;
+    off.mark_denser = false;
+    const KdTree plain = KdTree::build(s.positions, s.triangles, off);
+    ASSERT_EQ(plain.nodes().size(), tree.nodes().size());
+    std::size_t marked = 0;
+    for (std::size_t i = 0; i < tree.nodes().size(); ++i) {
+      const KdNode a = tree.nodes()[i], b = plain.nodes()[i];
+      if (a.is_leaf()) {
+        EXPECT_EQ(a.bits, b.bits) << "node " << i;
+        continue;
+      }
+      EXPECT_EQ(b.denser(), 0u) << "node " << i;
+      EXPECT_EQ(a.bits & ~16u, b.bits) << "node " << i;  // all but the mark
+      EXPECT_EQ(a.split, b.split) << "node " << i;
+      marked += a.denser();
+    }
+    EXPECT_GT(marked, 0u);
+  }
+}
+
 TEST(KdTree, BinnedLevelsVectorBinsBuildTheScalarTree) {
   // Above KdBuildOptions::exact_below references a node is split by the binned SAH, whose bins
   // of 16 references at a time come from vector code where the CPU has AVX-512 (the boxes
@@ -1430,11 +1470,11 @@ TEST(KdTraversal, EveryShadowOrderGivesTheSameAnswers) {
       if (!cpu_supports(isa)) continue;
       ++tried;
       for (bool packets : {true, false}) {
-        for (const ShadowOrder order : {ShadowOrder::Near, ShadowOrder::Far, ShadowOrder::Auto}) {
+        for (const ShadowOrder order : {ShadowOrder::Near, ShadowOrder::Far, ShadowOrder::Dense, ShadowOrder::Auto}) {
           SCOPED_TRACE(std::string(isa_name(isa)) + ", packets " + std::to_string(packets) + ", order " +
                        shadow_order_name(order) + ", " + test_name(watertight));
           // Auto: calls of 256 rays, as a renderer's runs, sharing one tally, so that runs in
-          // both orders are traced.
+          // both its orders are traced.
           ShadowOrderTally tally;
           std::vector<std::uint8_t> got(rays.size(), 2);
           for (std::size_t first = 0; first < rays.size(); first += 256) {
@@ -1445,11 +1485,12 @@ TEST(KdTraversal, EveryShadowOrderGivesTheSameAnswers) {
           for (std::size_t i = 0; i < rays.size(); ++i) {
             ASSERT_EQ(ref[i], got[i]) << test::describe_ray(rays[i]);
           }
-          if (order == ShadowOrder::Auto) {
-            EXPECT_GT(tally.rays[0].load(), 0u);
-            EXPECT_GT(tally.rays[1].load(), 0u);
-          } else {
-            EXPECT_EQ(tally.rays[0].load() + tally.rays[1].load(), 0u);
+          for (int w = 0; w < kShadowWalks; ++w) {
+            if (order == ShadowOrder::Auto && static_cast<ShadowWalk>(w) != ShadowWalk::Near) {
+              EXPECT_GT(tally.rays[w].load(), 0u) << "walk " << w;  // Auto's candidates, dense and far
+            } else {
+              EXPECT_EQ(tally.rays[w].load(), 0u) << "walk " << w;
+            }
           }
         }
       }

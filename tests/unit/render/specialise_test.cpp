@@ -225,7 +225,7 @@ TEST(Specialise, SamePixelsInEveryShadowOrder) {
     for (const Isa isa : compiled_isas()) {
       if (!cpu_supports(isa)) continue;
       for (const bool packets : {true, false}) {
-        for (const ShadowOrder order : {ShadowOrder::Near, ShadowOrder::Far, ShadowOrder::Auto}) {
+        for (const ShadowOrder order : {ShadowOrder::Near, ShadowOrder::Far, ShadowOrder::Dense, ShadowOrder::Auto}) {
           const std::size_t count = 2 * fs->lights.size();
           const auto tally = std::make_unique<ShadowOrderTally[]>(count);
           const Rendered got = render(*fs, isa, TileKernelOptions{packets, true, true, order, tally.get(), count},
@@ -233,16 +233,17 @@ TEST(Specialise, SamePixelsInEveryShadowOrder) {
           EXPECT_EQ(got.hash, reference.hash) << v.name << ", " << isa_name(isa) << ", packets " << packets
                                               << ", shadow order " << shadow_order_name(order);
           EXPECT_EQ(got.counts.shadow, reference.counts.shadow) << v.name;
-          std::uint64_t rays[2] = {0, 0};
+          std::uint64_t rays[kShadowWalks] = {0, 0, 0};
           for (std::size_t k = 0; k < count; ++k) {
-            rays[0] += tally[k].rays[0].load();
-            rays[1] += tally[k].rays[1].load();
+            for (int w = 0; w < kShadowWalks; ++w) rays[w] += tally[k].rays[w].load();
           }
           if (order == ShadowOrder::Auto && reference.counts.shadow > 0) {  // all_sky: none
-            EXPECT_GT(rays[0], 0u) << v.name;
-            EXPECT_GT(rays[1], 0u) << v.name;
+            for (const ShadowWalk w : ShadowOrderChooser::kAutoWalks) {
+              EXPECT_GT(rays[static_cast<int>(w)], 0u) << v.name << ", walk " << static_cast<int>(w);
+            }
+            EXPECT_EQ(rays[static_cast<int>(ShadowWalk::Near)], 0u) << v.name;
           } else {
-            EXPECT_EQ(rays[0] + rays[1], 0u) << v.name;
+            EXPECT_EQ(rays[0] + rays[1] + rays[2], 0u) << v.name;
           }
         }
       }
