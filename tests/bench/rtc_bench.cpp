@@ -341,6 +341,11 @@ int run(int argc, char** argv) {
                  "entered); the same answers in every order")
       ->check(CLI::IsMember({"auto", "near", "far", "dense"}))
       ->capture_default_str();
+  std::string ab_shadow_order_text;
+  app.add_option("--ab-shadow-order", ab_shadow_order_text,
+                 "shadow mode: also time the packets in this shadow order (with a tally of its own), rep by rep beside "
+                 "the first's (paired ratio; the answers must be the same)")
+      ->check(CLI::IsMember({"auto", "near", "far", "dense"}));
   app.add_flag("--kernel-ab", kernel_ab,
                "full mode: time the general and the specialised kernel, each with and without empty-space skipping, "
                "interleaved rep by rep, and check that all four give the same pixels");
@@ -353,6 +358,8 @@ int run(int argc, char** argv) {
   app.add_option("--spp", spp, "samples per pixel (default: the scene's)")->check(CLI::Range(1, 4096));
   CLI11_PARSE(app, argc, argv);
   const rtc::ShadowOrder shadow_order = rtc::parse_shadow_order(shadow_order_text);
+  const std::optional<rtc::ShadowOrder> ab_shadow_order =
+      ab_shadow_order_text.empty() ? std::nullopt : std::optional(rtc::parse_shadow_order(ab_shadow_order_text));
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   if (ab_reps == 0) ab_reps = reps;
@@ -632,8 +639,37 @@ int run(int argc, char** argv) {
                        &tally_ab_single);
         }});
       }
+      // --ab-shadow-order: the packets again in another order, last.
+      const std::size_t ab_order_index = contenders.size();
+      std::vector<std::uint8_t> occ_ab_order;
+      std::vector<RayHit> scratch_ab_order;
+      rtc::ShadowOrderTally tally_ab_order;
+      if (shadow && ab_shadow_order) {
+        contenders.push_back({[&] {
+          trace_stream(kernels, *fs, s, true, true, scratch_ab_order, occ_ab_order, false, *ab_shadow_order,
+                       &tally_ab_order);
+        }});
+      }
       const std::vector<std::vector<double>> times = rtc::bench::time_rounds_ms(reps, contenders);
       const double ms_packet = rtc::bench::median_of(times[0]);
+      if (shadow && ab_shadow_order) {
+        std::uint64_t differ = 0;
+        for (std::size_t i = 0; i < s.rays.size(); ++i) {
+          if (s.pixel[i] >= 0) differ += (occ[i] != 0) != (occ_ab_order[i] != 0);
+        }
+        const double ratio = rtc::bench::paired_ratio(times[0], times[ab_order_index]);
+        out["ab_shadow_order"] = {{"order", rtc::shadow_order_name(*ab_shadow_order)},
+                                  {"mrays_per_s", static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3},
+                                  {"speed_vs_first_paired", ratio},
+                                  {"answers_differ", differ}};
+        ab_differ = ab_differ || differ != 0;
+        if (!json) {
+          std::printf("  %-7s packets in shadow order %s: %.2f M rays/s (%.3fx the %s order's, paired)%s\n",
+                      mode.c_str(), rtc::shadow_order_name(*ab_shadow_order),
+                      static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3, ratio,
+                      rtc::shadow_order_name(shadow_order), differ != 0 ? ", ANSWERS DIFFER" : "");
+        }
+      }
       const double ms_single = rtc::bench::median_of(times[1]);
       if (fs_ab) {
         // The same answers from both trees, bit for bit, else the comparison is void. (The
@@ -1002,12 +1038,21 @@ int run(int argc, char** argv) {
     if (json) std::printf("%s\n", out.dump().c_str());
   }
   if (ab_differ) {
-    std::fprintf(stderr,
-                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below %d "
-                 "and %d the answers differ (between the trees, or between packets and single rays)\n",
-                 static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
-                 static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
-                 kd_options.exact_below, ab_options.exact_below);
+    if (ab_shadow_order) {
+      std::fprintf(stderr, "rtc-bench: error: shadow orders %s and %s gave different answers\n",
+                   rtc::shadow_order_name(shadow_order), rtc::shadow_order_name(*ab_shadow_order));
+    }
+    if (ab_tree) {
+      std::fprintf(stderr,
+                   "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below "
+                   "%d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, --kd-max-depth %d and %d the "
+                   "answers differ (between the trees, or between packets and single rays)\n",
+                   static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
+                   static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
+                   kd_options.exact_below, ab_options.exact_below, static_cast<double>(kd_options.footprint_pixels),
+                   static_cast<double>(ab_options.footprint_pixels), kd_options.effective_mask_below(),
+                   ab_options.effective_mask_below(), kd_options.max_depth, ab_options.max_depth);
+    }
     return 4;
   }
   return 0;
