@@ -93,22 +93,25 @@ struct ShadowOrderTally {
   std::atomic<std::uint64_t> ticks[kShadowWalks] = {0, 0, 0};
   std::atomic<std::uint64_t> rays[kShadowWalks] = {0, 0, 0};
   std::atomic<std::uint32_t> runs = 0;  // runs started
-  std::atomic<std::uint8_t> preferred = 0;  // the walk runs take (but exploring ones): an index into kAutoWalks
+  /// The walk runs take (but exploring ones): an index into ShadowOrderChooser::kAutoWalks, or
+  /// kNoPreference until the first run after the candidates' first kMinRays rays sets it.
+  std::atomic<std::uint8_t> preferred = kNoPreference;
+  static constexpr std::uint8_t kNoPreference = 0xFF;
 };
 
 /// Picks the walk order of a run of shadow packets (one light's rays over a tile, say): one
-/// order for the whole run, from the mean time per ray each order took in the shared tally's
-/// runs, decided when the run's first packet asks (a chooser no packet asks costs nothing and
-/// is not counted). Until every order has kMinRays rays there, a run takes the one with fewest
-/// (the first of those from run number mod 3, so that runs started together spread). Then the
-/// preferred one, except every kExplore-th run, which takes one of the other two, in turn, so
-/// that their means stay current: each is explored every 2 kExplore-th run, or every 2
-/// kExploreRare-th where its mean is kApart times the preferred one's or more (there an
-/// exploring run costs most and tells least; spd-mount-s10's near-first shadow packets take 1.5
-/// times as long as its far-first ones, and its 16-wide shadow rays ran 1.055x as fast
-/// exploring every 64th run as every 16th). The tally's preferred order changes only when the
-/// fastest other's mean is kMargin below its own: switching costs a warm-up, so two orders
-/// within noise of each other (spd-tree) should not take turns. A run times its packets after
+/// order for the whole run, from the mean time per ray each of Auto's candidates (kAutoWalks:
+/// dense and far) took in the shared tally's runs, decided when the run's first packet asks (a
+/// chooser no packet asks costs nothing and is not counted). Until both have kMinRays rays
+/// there, a run takes the one with fewer (the first from run number mod 2, so that runs started
+/// together spread). The first run after that prefers the faster outright; the runs after it
+/// take the preferred one, except every kExplore-th run, which takes the other so that both
+/// means stay current (every kExploreRare-th where the other's mean is kApart times the
+/// preferred one's or more: there an exploring run costs most and tells least; spd-mount-s10's
+/// near-first shadow packets took 1.5 times as long as its far-first ones, and its 16-wide
+/// shadow rays ran 1.055x as fast exploring every 64th run as every 16th). The preferred order
+/// changes only when the other's mean is kMargin below its own: switching costs a warm-up, so
+/// two orders within noise of each other should not take turns. A run times its packets after
 /// its first kWarmUp (every one in exploring runs and before kMinRays, every kTimeEvery-th
 /// otherwise) and flush() adds them to the tally. With a fixed order (Near, Far, Dense), or
 /// without a tally, it always answers one order (Near for Auto without a tally) and times
@@ -211,12 +214,14 @@ class ShadowOrderChooser {
       return static_cast<double>(ticks[a]) * static_cast<double>(rays[b]) <
              f * static_cast<double>(ticks[b]) * static_cast<double>(rays[a]);
     };
-    int p = std::min<int>(shared_->preferred.load(std::memory_order_relaxed), kC - 1);
+    const std::uint8_t stored = shared_->preferred.load(std::memory_order_relaxed);
+    int p = stored < kC ? stored : 0;
     int fastest = p;
     for (int c = 0; c < kC; ++c) {
       if (mean_below(c, fastest, 1.0)) fastest = c;
     }
-    if (fastest != p && mean_below(fastest, p, 1.0 - kMargin)) {
+    // The first preference is the faster outright; later ones change only by kMargin.
+    if (stored >= kC || (fastest != p && mean_below(fastest, p, 1.0 - kMargin))) {
       p = fastest;
       shared_->preferred.store(static_cast<std::uint8_t>(p), std::memory_order_relaxed);
     }
