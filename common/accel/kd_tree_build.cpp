@@ -3461,7 +3461,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
         box.extend(b);
         box.extend(c);
       }
-      if (options.mark_denser) tri_area[i] = 0.5f * glm::length(glm::cross(b - a, c - a));
+      if (options.mark_denser) {  // in double: a huge thin triangle's cross product overflows in float
+        const glm::dvec3 da(a), db(b), dc(c);
+        tri_area[i] = static_cast<float>(0.5 * glm::length(glm::cross(db - da, dc - da)));
+      }
       if (!box.empty()) {  // as the tree's references are chosen below
         chunk_box[chunk].extend(box);
         ++chunk_valid[chunk];

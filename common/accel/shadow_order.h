@@ -1,5 +1,5 @@
-// Which end of a shadow ray the kd-tree walk starts from, and the per-light choice between the
-// two ends. Not compiled per ISA: plain integer and float arithmetic, the same on every ISA.
+// The order in which a shadow ray's kd-tree walk visits its leaves (from its origin, from the
+// light's end, or the denser child first), and the per-light choice between them. Not compiled per ISA: plain integer and float arithmetic, the same on every ISA.
 #pragma once
 
 #include <algorithm>
@@ -137,7 +137,8 @@ class ShadowOrderChooser {
   static constexpr std::uint32_t kTimeEvery = 8;  ///< of the runs taking the preferred order
   static constexpr std::uint64_t kMinRays = 2048;
   static constexpr double kMargin = 0.05;
-  /// The walks Auto picks among, the first preferred until another is kMargin faster. Not Near:
+  /// The walks Auto picks among (the first preference the faster outright, dense on a tie;
+  /// then a switch only when the other is kMargin faster). Not Near:
   /// Dense walks near-first wherever that is the denser child, and on every view where Auto had
   /// settled on Near it measured faster (in-process, against Auto over Near and Far: spd-balls'
   /// 16-wide shadow packets 1.11-1.14x, spd-tree 1.02-1.03x).

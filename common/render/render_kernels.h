@@ -50,9 +50,9 @@ struct TileKernelOptions {
   bool packets = true;     ///< false: the single-ray (N = 1) kernels
   bool specialise = true;  ///< the kernel specialised to FrameState::features; false: the general one
   bool skip_empty = true;  ///< skip primary rays that FrameState::cull says miss everything
-  /// Where shadow rays' kd-tree walks start (ShadowOrder; the same pixels in every order):
-  /// Auto chooses per run of packets (a light's over the tile) from the time each order took
-  /// (ShadowOrderChooser).
+  /// The order of shadow rays' kd-tree walks (ShadowOrder; the same pixels in every order):
+  /// Auto chooses between dense and far per run of packets (a light's over the tile) from the
+  /// time each took (ShadowOrderChooser).
   ShadowOrder shadow_order = ShadowOrder::Auto;
   /// Optional, with Auto: tallies shared by tiles and threads, [2 * light + (1 for the shadow
   /// rays of mirror bounces)]; lights past `shadow_tally_count / 2` have no tally, so their

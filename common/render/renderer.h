@@ -47,7 +47,7 @@ struct RenderOptions {
   /// whole tiles and packets of them get the background as a miss would. The same pixels and
   /// temporal marks either way.
   bool skip_empty = true;
-  /// Where shadow rays' kd-tree walks start (TileKernelOptions::shadow_order); the same pixels
+  /// The order of shadow rays' kd-tree walks (TileKernelOptions::shadow_order); the same pixels
   /// in every order.
   ShadowOrder shadow_order = ShadowOrder::Auto;
   /// Route every ray through another tracer (benchmarks only; null: rtc's kd-tree). Must

@@ -11,7 +11,9 @@ Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut 
 binned), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
 event sweep down to the leaves against bit masks below 128 references): the two trees' options
 are recorded, the trees differ, they give the same answers, the figures (both trees' SAH costs
-too) are finite and the summary tabulates them.
+too) are finite and the summary tabulates them; and --ab-kd-max-depth (the default depth limit
+against 10). Last, --ab-shadow-order (far against dense: the same answers) and auto's tally in
+shadow mode (dense and far timed, near not; "none" with no lights).
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
@@ -91,8 +93,50 @@ def main(bench):
            other_tree("kd_footprint", 0, 2))
     run_ab(bench, 3, ["--kd-mask-below", "0", "--ab-kd-mask-below", "128"], "nodes (0 → 128)",
            other_tree("kd_mask_below", 0, 128))
+    # A depth limit of 10 (0: the default rule, 8 + 1.3 log2 N = 27 here) gives a shallower tree.
+    def depth_limit(r, ab, mode):
+        other_tree("kd_max_depth_limit", 0, 10)(r, ab, mode)
+        check(isinstance(ab.get("kd_max_depth"), int) and ab["kd_max_depth"] <= 10,
+              f"{mode}: the second tree reaches depth {ab.get('kd_max_depth')}, limit 10")
+    run_ab(bench, 3, ["--kd-max-depth", "0", "--ab-kd-max-depth", "10"], "nodes (0 → 10)", depth_limit)
+    check_shadow_orders(bench)
     print(f"{len(failures)} failure(s)")
     return 1 if failures else 0
+
+
+def check_shadow_orders(bench):
+    """--ab-shadow-order: the far order against the dense one, the same answers, finite figures,
+    and auto's tally recorded (shadow_walks); with no lights (no shadow rays) auto never settles
+    and says so ("none") instead of failing."""
+    run = subprocess.run([bench, "--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "shadow",
+                          "--shadow-order", "far", "--ab-shadow-order", "dense", "--json"],
+                         capture_output=True, text=True, timeout=240)
+    check(run.returncode == 0, f"rtc-bench --ab-shadow-order dense: exit status {run.returncode}: {run.stderr[-2000:]}")
+    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    check(len(rows) == 1, f"--ab-shadow-order: {len(rows)} JSON lines, expected 1")
+    for r in rows:
+        ab = r.get("ab_shadow_order", {})
+        check(ab.get("order") == "dense", f"ab_shadow_order.order = {ab.get('order')}")
+        check(ab.get("answers_differ") == 0, f"{ab.get('answers_differ')} answers differ between far and dense")
+        for key in ("mrays_per_s", "speed_vs_first_paired"):
+            check(finite_positive(ab.get(key)), f"ab_shadow_order.{key} = {ab.get(key)}")
+    run = subprocess.run([bench, "--threads", "2", "--reps", "2", "--build-reps", "1", "--mode", "shadow", "--json"],
+                         capture_output=True, text=True, timeout=240)
+    check(run.returncode == 0, f"rtc-bench --mode shadow: exit status {run.returncode}: {run.stderr[-2000:]}")
+    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    for r in rows:
+        walks = r.get("shadow_walks", {})
+        check(walks.get("preferred") in ("dense", "far"), f"auto settled on {walks.get('preferred')}")
+        check(walks.get("near", {}).get("timed_rays") == 0, "auto timed near-first walks")
+        for order in ("dense", "far"):
+            check(walks.get(order, {}).get("timed_rays", 0) > 0, f"auto timed no {order} walks")
+    run = subprocess.run([bench, "--threads", "2", "--reps", "1", "--build-reps", "1", "--mode", "shadow",
+                          "--no-lights", "--json"], capture_output=True, text=True, timeout=240)
+    check(run.returncode == 0, f"rtc-bench --no-lights --mode shadow: exit status {run.returncode}: {run.stderr[-2000:]}")
+    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    for r in rows:
+        check(r.get("shadow_walks", {}).get("preferred") == "none",
+              f"no lights: auto settled on {r.get('shadow_walks', {}).get('preferred')}")
 
 
 if __name__ == "__main__":

@@ -466,6 +466,7 @@ int run(int argc, char** argv) {
   // The two trees gave different answers (a tree changes no answer: a hit on a plane goes on
   // into the next leaf, and ties are settled by triangle id): an error, after the figures.
   bool ab_differ = false;
+  bool ab_order_differ = false;  // --ab-shadow-order's two orders gave different answers
   rtc::KdBuildOptions ab_options = kd_options;
   if (ab_leaf_box_saving >= 0.0f) ab_options.leaf_box_saving = ab_leaf_box_saving;
   if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
@@ -500,6 +501,7 @@ int run(int argc, char** argv) {
                          {"kd_nodes", kd.nodes},
                          {"kd_leaves", kd.leaves},
                          {"kd_max_depth", kd.max_depth},
+                         {"kd_max_depth_limit", kd_options.max_depth},
                          {"kd_tris_per_leaf", kd.mean_tris_per_leaf},
                          {"kd_sah_cost", kd.sah_cost},
                          {"kd_refs", kd.prim_refs},
@@ -662,7 +664,7 @@ int run(int argc, char** argv) {
                                   {"mrays_per_s", static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3},
                                   {"speed_vs_first_paired", ratio},
                                   {"answers_differ", differ}};
-        ab_differ = ab_differ || differ != 0;
+        ab_order_differ = ab_order_differ || differ != 0;
         if (!json) {
           std::printf("  %-7s packets in shadow order %s: %.2f M rays/s (%.3fx the %s order's, paired)%s\n",
                       mode.c_str(), rtc::shadow_order_name(*ab_shadow_order),
@@ -704,9 +706,9 @@ int run(int argc, char** argv) {
                      {"kd_exact_below", ab_options.exact_below},
                      {"kd_footprint", ab_options.footprint_pixels},
                      {"kd_mask_below", ab_options.effective_mask_below()},
-                     {"kd_max_depth", ab_options.max_depth},
+                     {"kd_max_depth_limit", ab_options.max_depth},
                      {"kd_nodes", kd_ab.nodes},
-                     {"kd_depth", kd_ab.max_depth},
+                     {"kd_max_depth", kd_ab.max_depth},
                      {"kd_tris_per_leaf", kd_ab.mean_tris_per_leaf},
                      {"build_ms", kd_ab.build_ms},
                      {"kd_sah_cost", kd_ab.sah_cost},
@@ -774,14 +776,14 @@ int run(int argc, char** argv) {
           line += fmt::format("{}{} {:.0f} ticks per ray ({} timed rays)", w > 0 ? ", " : "",
                               rtc::shadow_order_name(order), per_ray, n);
         }
-        const rtc::ShadowOrder preferred =
-            rtc::shadow_order_of(rtc::ShadowOrderChooser::kAutoWalks.at(tally_packets.preferred.load()));
-        walks["preferred"] = rtc::shadow_order_name(preferred);
+        // No preference yet (no shadow rays, or too few for auto to settle): "none".
+        const std::uint8_t p = tally_packets.preferred.load();
+        const char* preferred = p < rtc::ShadowOrderChooser::kAutoWalks.size()
+                                    ? rtc::shadow_order_name(rtc::shadow_order_of(rtc::ShadowOrderChooser::kAutoWalks[p]))
+                                    : "none";
+        walks["preferred"] = preferred;
         out["shadow_walks"] = walks;
-        if (!json) {
-          std::printf("          auto's packet walks: %s; settled on %s\n", line.c_str(),
-                      rtc::shadow_order_name(preferred));
-        }
+        if (!json) std::printf("          auto's packet walks: %s; settled on %s\n", line.c_str(), preferred);
       }
       if (!shadow) {
         // Primary hits with their distances refined too, as rtc's stream API reports them (the
@@ -1037,12 +1039,12 @@ int run(int argc, char** argv) {
     }
     if (json) std::printf("%s\n", out.dump().c_str());
   }
+  if (ab_order_differ) {
+    std::fprintf(stderr, "rtc-bench: error: shadow orders %s and %s gave different answers\n",
+                 rtc::shadow_order_name(shadow_order), rtc::shadow_order_name(*ab_shadow_order));
+  }
   if (ab_differ) {
-    if (ab_shadow_order) {
-      std::fprintf(stderr, "rtc-bench: error: shadow orders %s and %s gave different answers\n",
-                   rtc::shadow_order_name(shadow_order), rtc::shadow_order_name(*ab_shadow_order));
-    }
-    if (ab_tree) {
+    {
       std::fprintf(stderr,
                    "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below "
                    "%d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, --kd-max-depth %d and %d the "
@@ -1053,8 +1055,8 @@ int run(int argc, char** argv) {
                    static_cast<double>(ab_options.footprint_pixels), kd_options.effective_mask_below(),
                    ab_options.effective_mask_below(), kd_options.max_depth, ab_options.max_depth);
     }
-    return 4;
   }
+  if (ab_differ || ab_order_differ) return 4;
   return 0;
 }
 

@@ -25,6 +25,8 @@ def main() -> None:
         key, title = "kd_mask_below", "Bit masks (not clipped) below"
     elif differs("kd_exact_below"):
         key, title = "kd_exact_below", "Exact sweep below"
+    elif differs("kd_max_depth_limit"):
+        key, title = "kd_max_depth_limit", "Depth limit (0: 8 + 1.3 log2 N)"
     elif differs("kd_empty_cut"):
         key, title = "kd_empty_cut", "Empty gaps cut without the sweep"
     else:
@@ -32,7 +34,8 @@ def main() -> None:
     cut = key != "kd_leaf_box_saving"  # trees of different shapes: their node counts
     size, size_label = ("kd_nodes", "nodes") if cut else ("kd_leaf_boxes", "boxes")
     a, b = first[key], first["ab"][key]
-    print(f"# {title}: --{key.replace('_', '-')} {b:g} against {a:g}\n")
+    option = "kd_max_depth" if key == "kd_max_depth_limit" else key
+    print(f"# {title}: --{option.replace('_', '-')} {b:g} against {a:g}\n")
     print(f"Regenerate with `{sys.argv[2]}`. {first['threads']} thread(s), isa {first['isa']}, "
           f"{first['reps']} reps, process CPU time. Each view is one process: both trees are built, then "
           "their packets and single rays take turns rep by rep; a ratio is the median over the reps of "
@@ -48,7 +51,7 @@ def main() -> None:
         ratios[r["mode"]][0].append(ab["speed_vs_first_paired"])
         ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
         sizes = f"{r[size]:,} → {ab[size]:,}" if cut else f"{ab[size]:,}"
-        if key in ("kd_exact_below", "kd_footprint", "kd_mask_below") and "kd_sah_cost" in ab:
+        if key in ("kd_exact_below", "kd_footprint", "kd_mask_below", "kd_max_depth_limit") and "kd_sah_cost" in ab:
             sizes += f" (SAH {r['kd_sah_cost']:.2f} → {ab['kd_sah_cost']:.2f})"
         print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {sizes} | "
               f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
