@@ -26,9 +26,10 @@ namespace rtc {
 /// position; bit c of the empty children (bits 2-3) is set when child left + c is a leaf
 /// without triangles, so a walk can pass it by without loading it; the denser child (bit 4,
 /// denser()) is the one a ray crossing the node more likely stops in, by the build's estimate
-/// (KdBuildOptions::mark_denser), which the dense shadow order enters first. Leaf: bits = (offset into KdTree::prim_refs << 2) | 3,
-/// `count` the number of triangle references (tri_count()), with kBoxed set when the slot
-/// before the first holds the leaf's LeafBox (has_box()).
+/// (KdBuildOptions::mark_denser), which the dense shadow order enters first. Leaf: bits =
+/// (offset into KdTree::prim_refs << 2) | 3, `count` the number of triangle references
+/// (tri_count()), with kBoxed set when the slot before the first holds the leaf's LeafBox
+/// (has_box()).
 struct KdNode {
   std::uint32_t bits = 3;
   union {

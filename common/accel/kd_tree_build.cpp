@@ -3516,7 +3516,10 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   std::unique_ptr<TopNode> top = TopBuilder(ctx).build(std::move(tris), root, 0);
 
   const std::uint64_t node_total = 1 + top->nodes_below;
-  if (node_total >= KdNode::kMaxNodes) throw Error("kd-tree: more than 2^27 nodes (the 8-byte node format's limit)");
+  if (node_total >= KdNode::kMaxNodes) {
+    throw Error(fmt::format("kd-tree: more than 2^{} nodes (the 8-byte node format's limit)",
+                            std::countr_zero(KdNode::kMaxNodes)));
+  }
   if (top->refs >= (1u << 30)) {
     throw Error("kd-tree: more than 2^30 triangle references (the 8-byte node format's limit)");
   }

@@ -1,8 +1,8 @@
 // The order in which a shadow ray's kd-tree walk visits its leaves (from its origin, from the
-// light's end, or the denser child first), and the per-light choice between them. Not compiled per ISA: plain integer and float arithmetic, the same on every ISA.
+// light's end, or the denser child first), and the per-light choice between them. Not compiled
+// per ISA: plain integer and float arithmetic, the same on every ISA.
 #pragma once
 
-#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -189,23 +189,16 @@ class ShadowOrderChooser {
 
  private:
   void start_run() {
+    static_assert(kAutoWalks.size() == 2, "the choice below is between two walks");
     const std::uint32_t n = shared_->runs.fetch_add(1, std::memory_order_relaxed);
-    constexpr int kC = kAutoWalks.size();
-    std::uint64_t ticks[kC], rays[kC];
-    bool unsettled = false;
-    for (int c = 0; c < kC; ++c) {
+    std::uint64_t ticks[2], rays[2];
+    for (int c = 0; c < 2; ++c) {
       const int k = static_cast<int>(kAutoWalks[c]);
       ticks[c] = shared_->ticks[k].load(std::memory_order_relaxed);
       rays[c] = shared_->rays[k].load(std::memory_order_relaxed);
-      unsettled = unsettled || rays[c] < kMinRays;
     }
-    if (unsettled) {
-      int fewest = static_cast<int>(n % kC);
-      for (int j = 1; j < kC; ++j) {
-        const int c = static_cast<int>((n + j) % kC);
-        if (rays[c] < rays[fewest]) fewest = c;
-      }
-      walk_ = kAutoWalks[fewest];
+    if (rays[0] < kMinRays || rays[1] < kMinRays) {
+      walk_ = kAutoWalks[rays[1] < rays[0] || (rays[1] == rays[0] && (n & 1u) != 0) ? 1 : 0];
       time_every_ = 1;
       return;
     }
@@ -215,29 +208,19 @@ class ShadowOrderChooser {
       return static_cast<double>(ticks[a]) * static_cast<double>(rays[b]) <
              f * static_cast<double>(ticks[b]) * static_cast<double>(rays[a]);
     };
+    // The first preference is the faster outright (dense on a tie); later ones change only when
+    // the other is kMargin faster.
     const std::uint8_t stored = shared_->preferred.load(std::memory_order_relaxed);
-    int p = stored < kC ? stored : 0;
-    int fastest = p;
-    for (int c = 0; c < kC; ++c) {
-      if (mean_below(c, fastest, 1.0)) fastest = c;
-    }
-    // The first preference is the faster outright; later ones change only by kMargin.
-    if (stored >= kC || (fastest != p && mean_below(fastest, p, 1.0 - kMargin))) {
-      p = fastest;
-      shared_->preferred.store(static_cast<std::uint8_t>(p), std::memory_order_relaxed);
-    }
-    walk_ = kAutoWalks[p];
-    time_every_ = kTimeEvery;
-    if (n % kExplore != kExplore - 1) return;
-    // An exploring slot: the other candidates in turn; one kApart from the preferred one (as it
-    // stands now, after any switch above) only in every (kExploreRare / kExplore)-th of its slots.
-    const std::uint32_t slot = n / kExplore;
-    const int other = (p + 1 + static_cast<int>(slot % (kC - 1))) % kC;
-    const bool apart = !mean_below(other, p, kApart);
-    constexpr std::uint32_t kRare = kExploreRare / kExplore;
-    if (apart && (slot / (kC - 1)) % kRare != kRare - 1) return;
-    walk_ = kAutoWalks[other];
-    time_every_ = 1;
+    int p = stored < 2 ? stored : 0;
+    if (stored >= 2 ? mean_below(1 - p, p, 1.0) : mean_below(1 - p, p, 1.0 - kMargin)) p = 1 - p;
+    if (stored != p) shared_->preferred.store(static_cast<std::uint8_t>(p), std::memory_order_relaxed);
+    // The other's mean at least kApart times the preferred one's (as it stands now, after any
+    // switch above): explored every kExploreRare-th run, else every kExplore-th.
+    const bool apart = !mean_below(1 - p, p, kApart);
+    const std::uint32_t every = apart ? kExploreRare : kExplore;
+    const bool explore = n % every == every - 1;
+    walk_ = kAutoWalks[explore ? 1 - p : p];
+    time_every_ = explore ? 1 : kTimeEvery;
   }
 
   ShadowWalk walk_;

@@ -660,15 +660,15 @@ int run(int argc, char** argv) {
           if (s.pixel[i] >= 0) differ += (occ[i] != 0) != (occ_ab_order[i] != 0);
         }
         const double ratio = rtc::bench::paired_ratio(times[0], times[ab_order_index]);
+        const double mrays = static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3;
         out["ab_shadow_order"] = {{"order", rtc::shadow_order_name(*ab_shadow_order)},
-                                  {"mrays_per_s", static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3},
+                                  {"mrays_per_s", mrays},
                                   {"speed_vs_first_paired", ratio},
                                   {"answers_differ", differ}};
         ab_order_differ = ab_order_differ || differ != 0;
         if (!json) {
           std::printf("  %-7s packets in shadow order %s: %.2f M rays/s (%.3fx the %s order's, paired)%s\n",
-                      mode.c_str(), rtc::shadow_order_name(*ab_shadow_order),
-                      static_cast<double>(s.real) / rtc::bench::median_of(times[ab_order_index]) / 1e3, ratio,
+                      mode.c_str(), rtc::shadow_order_name(*ab_shadow_order), mrays, ratio,
                       rtc::shadow_order_name(shadow_order), differ != 0 ? ", ANSWERS DIFFER" : "");
         }
       }
@@ -1044,17 +1044,15 @@ int run(int argc, char** argv) {
                  rtc::shadow_order_name(shadow_order), rtc::shadow_order_name(*ab_shadow_order));
   }
   if (ab_differ) {
-    {
-      std::fprintf(stderr,
-                   "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below "
-                   "%d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, --kd-max-depth %d and %d the "
-                   "answers differ (between the trees, or between packets and single rays)\n",
-                   static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
-                   static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
-                   kd_options.exact_below, ab_options.exact_below, static_cast<double>(kd_options.footprint_pixels),
-                   static_cast<double>(ab_options.footprint_pixels), kd_options.effective_mask_below(),
-                   ab_options.effective_mask_below(), kd_options.max_depth, ab_options.max_depth);
-    }
+    std::fprintf(stderr,
+                 "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below "
+                 "%d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, --kd-max-depth %d and %d the "
+                 "answers differ (between the trees, or between packets and single rays)\n",
+                 static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
+                 static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
+                 kd_options.exact_below, ab_options.exact_below, static_cast<double>(kd_options.footprint_pixels),
+                 static_cast<double>(ab_options.footprint_pixels), kd_options.effective_mask_below(),
+                 ab_options.effective_mask_below(), kd_options.max_depth, ab_options.max_depth);
   }
   if (ab_differ || ab_order_differ) return 4;
   return 0;
