@@ -22,6 +22,7 @@
 #include "common/base/isa.h"
 #include "common/scene/tessellate.h"
 #include "tests/support/hit_compare.h"
+#include "tests/unit/accel/walk_order.h"
 
 namespace rtc {
 namespace {
@@ -947,6 +948,98 @@ TEST(KdTree, MarksTheDenserChild) {
       marked += a.denser();
     }
     EXPECT_GT(marked, 0u);
+  }
+}
+
+// The logging walk of walk_order.h for `isa` (nullptr where not compiled in).
+WalkLogFn walk_log_for(Isa isa) {
+  switch (isa) {
+#ifdef RTC_HAVE_ISA_SSE42
+    case Isa::Sse42:
+      return &isa_sse42::walk_log;
+#endif
+#ifdef RTC_HAVE_ISA_AVX2
+    case Isa::Avx2:
+      return &isa_avx2::walk_log;
+#endif
+#ifdef RTC_HAVE_ISA_AVX512
+    case Isa::Avx512:
+      return &isa_avx512::walk_log;
+#endif
+    default:
+      return nullptr;
+  }
+}
+
+// The walk orders themselves, which no answer shows (occlusion is the same in every order): a
+// shadow ray crossing the dense cluster of MarksTheDenserChild and a large triangle 6 units away
+// enters first the root's child nearer along it (Near), the farther one (Far), or the one the
+// root marks denser (Dense), except where it starts in the near child: then the far one. The
+// first triangle tested says which child. Every ISA, packets of 4 rays and single rays.
+TEST(KdTraversal, ShadowWalksEnterTheChildTheirOrderNames) {
+  for (const float side : {6.0f, -6.0f}) {
+    SCOPED_TRACE(testing::Message() << "wall at x " << side);
+    Soup s = random_soup(5, 2000, 0.2f);
+    const auto wall = static_cast<std::uint32_t>(s.triangles.size());
+    add_wall(s, side, 1);
+    const KdTree tree = KdTree::build(s.positions, s.triangles, KdBuildOptions{});
+    const KdNode root = tree.nodes()[0];
+    ASSERT_FALSE(root.is_leaf());
+    ASSERT_EQ(root.axis(), 0);
+    ASSERT_GT(std::abs(root.split), 1.0f);
+    ASSERT_LT(std::abs(root.split), 5.0f);
+    ASSERT_EQ(root.denser(), side > 0 ? 0u : 1u);  // the cluster's side
+    const auto cluster_only = [&](std::uint32_t id) {
+      if (id >= wall) return false;
+      const glm::uvec3 t = s.triangles[id];
+      for (int k = 0; k < 3; ++k) {
+        const float x = s.positions[t[k]].x;
+        if (side > 0 ? x >= root.split : x <= root.split) return false;
+      }
+      return true;
+    };
+    // Rays along x through the cluster's middle and the wall, from `org_x` towards `towards`
+    // (+1 or -1); which side each order tests first: true for the wall.
+    struct Case {
+      float org_x, towards;
+      bool near_wall, far_wall, dense_wall;
+    };
+    const float w = side > 0 ? 1.0f : -1.0f;  // towards the wall
+    const Case cases[] = {
+        {20.0f * w, -w, true, false, false},   // from beyond the wall: the wall's side is near
+        {-20.0f * w, w, false, true, false},   // from beyond the cluster: the cluster's is near
+        {0.0f, w, false, true, true},          // from inside the cluster: its own side is near
+    };
+    for (const Case& c : cases) {
+      SCOPED_TRACE(testing::Message() << "from x " << c.org_x);
+      RayQuery rays[4];
+      for (int i = 0; i < 4; ++i) {
+        rays[i].org = glm::vec3(c.org_x, 0.01f * static_cast<float>(i), 0.02f);
+        rays[i].dir = glm::vec3(c.towards, 0.0f, 0.0f);
+      }
+      for (const Isa isa : compiled_isas()) {
+        if (!cpu_supports(isa)) continue;
+        const WalkLogFn walk = walk_log_for(isa);
+        ASSERT_NE(walk, nullptr) << isa_name(isa);
+        for (const bool packet : {true, false}) {
+          SCOPED_TRACE(testing::Message() << isa_name(isa) << (packet ? ", packet" : ", single rays"));
+          const std::pair<ShadowWalk, bool> orders[] = {
+              {ShadowWalk::Near, c.near_wall}, {ShadowWalk::Far, c.far_wall}, {ShadowWalk::Dense, c.dense_wall}};
+          for (const auto& [order, wall_first] : orders) {
+            WalkLog log;
+            walk(tree, rays, 4, packet, order, log);
+            ASSERT_GT(log.count, 0) << "order " << static_cast<int>(order);
+            // The wall, or one of the cluster's triangles that lies wholly on its side of the
+            // root's plane (those crossing it are in both children), whichever comes first.
+            const auto first = std::find_if(log.ids, log.ids + std::min(log.count, WalkLog::kMax),
+                                            [&](std::uint32_t id) { return id == wall || cluster_only(id); });
+            ASSERT_NE(first, log.ids + std::min(log.count, WalkLog::kMax)) << "order " << static_cast<int>(order);
+            EXPECT_EQ(*first == wall, wall_first) << "order " << static_cast<int>(order);
+            EXPECT_EQ(log.occluded, 0xFu) << "order " << static_cast<int>(order);  // the wall blocks all
+          }
+        }
+      }
+    }
   }
 }
 
