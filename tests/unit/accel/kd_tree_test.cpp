@@ -974,8 +974,9 @@ WalkLogFn walk_log_for(Isa isa) {
 // The walk orders themselves, which no answer shows (occlusion is the same in every order): a
 // shadow ray crossing the dense cluster of MarksTheDenserChild and a large triangle 6 units away
 // enters first the root's child nearer along it (Near), the farther one (Far), or the one the
-// root marks denser (Dense), except where it starts in the near child: then the far one. The
-// first triangle tested says which child. Every ISA, packets of 4 rays and single rays.
+// root marks denser (Dense), except where it starts in the near child: then the far one. Which
+// of the wall and the cluster's triangles that lie wholly in its child is tested first says which
+// child. Every ISA, packets of 4 rays and single rays.
 TEST(KdTraversal, ShadowWalksEnterTheChildTheirOrderNames) {
   for (const float side : {6.0f, -6.0f}) {
     SCOPED_TRACE(testing::Message() << "wall at x " << side);

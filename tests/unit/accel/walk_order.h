@@ -15,7 +15,7 @@ namespace rtc {
 struct WalkLog {
   static constexpr int kMax = 4096;
   std::uint32_t ids[kMax];
-  int count = 0;   ///< tests made (may exceed kMax; ids holds the first kMax)
+  int count = 0;         ///< tests made (may exceed kMax; ids holds the first kMax)
   unsigned occluded = 0;  ///< bit i: ray i blocked
 };
 

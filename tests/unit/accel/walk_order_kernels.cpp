@@ -12,7 +12,6 @@ namespace {
 template <int N>
 struct LoggingTest {
   static constexpr bool kConservative = false;
-  WalkLog* log = nullptr;
   LoggingTest(const RayPacket<N>& /*ray*/, vbool<N> /*active*/) {}
   template <bool kOcclusion>
   void intersect(const TriRecord& rec, const RayPacket<N>& ray, vbool<N> active, HitPacket<N>& hit,
