@@ -911,6 +911,20 @@ TEST(KdTree, KeptPolygonsAndUnmovedEventsBuildTheSameTree) {
   }
 }
 
+// The root of a tree over a dense cluster around the origin (random_soup's cube of side 2) and
+// something sparse at x = `side` (+-6): a plane in x between them, its denser child the
+// cluster's.
+void expect_root_between_clusters(const KdTree& tree, float side) {
+  const KdNode root = tree.nodes()[0];
+  ASSERT_FALSE(root.is_leaf());
+  ASSERT_EQ(root.axis(), 0);
+  // Between the clusters (x within 1.2 of 0 and of `side`).
+  ASSERT_GT(std::abs(root.split), 1.0f);
+  ASSERT_LT(std::abs(root.split), 5.0f);
+  ASSERT_EQ(root.split > 0.0f, side > 0.0f);
+  EXPECT_EQ(root.denser(), side > 0 ? 0u : 1u);  // the child on the dense cluster's side
+}
+
 TEST(KdTree, MarksTheDenserChild) {
   // KdBuildOptions::mark_denser: a dense cluster (2000 triangles in a cube of side 2) beside a
   // sparse one (3 triangles) four units away along x: the root splits between them, and its
@@ -923,14 +937,7 @@ TEST(KdTree, MarksTheDenserChild) {
     for (const glm::vec3& p : sparse.positions) s.positions.push_back(p + glm::vec3(side, 0.0f, 0.0f));
     for (const glm::uvec3& t : sparse.triangles) s.triangles.push_back(t + glm::uvec3(base));
     const KdTree tree = KdTree::build(s.positions, s.triangles, KdBuildOptions{});
-    const KdNode root = tree.nodes()[0];
-    ASSERT_FALSE(root.is_leaf());
-    ASSERT_EQ(root.axis(), 0);
-    // Between the clusters (x within 1.2 of 0 and of `side`).
-    ASSERT_GT(std::abs(root.split), 1.0f);
-    ASSERT_LT(std::abs(root.split), 5.0f);
-    ASSERT_EQ(root.split > 0.0f, side > 0.0f);
-    EXPECT_EQ(root.denser(), side > 0 ? 0u : 1u);  // the child on the dense cluster's side
+    ASSERT_NO_FATAL_FAILURE(expect_root_between_clusters(tree, side));
     KdBuildOptions off;
     off.mark_denser = false;
     const KdTree plain = KdTree::build(s.positions, s.triangles, off);
@@ -984,12 +991,8 @@ TEST(KdTraversal, ShadowWalksEnterTheChildTheirOrderNames) {
     const auto wall = static_cast<std::uint32_t>(s.triangles.size());
     add_wall(s, side, 1);
     const KdTree tree = KdTree::build(s.positions, s.triangles, KdBuildOptions{});
+    ASSERT_NO_FATAL_FAILURE(expect_root_between_clusters(tree, side));
     const KdNode root = tree.nodes()[0];
-    ASSERT_FALSE(root.is_leaf());
-    ASSERT_EQ(root.axis(), 0);
-    ASSERT_GT(std::abs(root.split), 1.0f);
-    ASSERT_LT(std::abs(root.split), 5.0f);
-    ASSERT_EQ(root.denser(), side > 0 ? 0u : 1u);  // the cluster's side
     const auto cluster_only = [&](std::uint32_t id) {
       if (id >= wall) return false;
       const glm::uvec3 t = s.triangles[id];
