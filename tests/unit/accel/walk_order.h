@@ -19,24 +19,29 @@ struct WalkLog {
   unsigned occluded = 0;  ///< bit i: ray i blocked
 };
 
-/// Walks `count` rays (at most the ISA's packet width; all pointing into one octant) as one
-/// packet (`packet`) or ray by ray, in the order `walk`, logging the triangle tests into `log`.
-using WalkLogFn = void (*)(const KdTree& tree, const RayQuery* rays, int count, bool packet, ShadowWalk walk,
-                           WalkLog& log);
+/// Walks `count` rays (1 to the ISA's packet width; all pointing into one octant) as one packet
+/// (`packet`) or ray by ray, in the order `walk`, logging the triangle tests into `log`. A
+/// packet's lanes past `count` are inactive copies of `filler`, or of the last ray where it is
+/// null. A `count` out of range logs nothing (log.count -1).
+using WalkLogFn = void (*)(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet,
+                           ShadowWalk walk, WalkLog& log);
 
 #ifdef RTC_HAVE_ISA_SSE42
 namespace isa_sse42 {
-void walk_log(const KdTree& tree, const RayQuery* rays, int count, bool packet, ShadowWalk walk, WalkLog& log);
+void walk_log(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet,
+              ShadowWalk walk, WalkLog& log);
 }
 #endif
 #ifdef RTC_HAVE_ISA_AVX2
 namespace isa_avx2 {
-void walk_log(const KdTree& tree, const RayQuery* rays, int count, bool packet, ShadowWalk walk, WalkLog& log);
+void walk_log(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet,
+              ShadowWalk walk, WalkLog& log);
 }
 #endif
 #ifdef RTC_HAVE_ISA_AVX512
 namespace isa_avx512 {
-void walk_log(const KdTree& tree, const RayQuery* rays, int count, bool packet, ShadowWalk walk, WalkLog& log);
+void walk_log(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet,
+              ShadowWalk walk, WalkLog& log);
 }
 #endif
 

@@ -28,9 +28,9 @@ struct LoggingTest {
 };
 
 template <int N, ShadowWalk kWalk>
-unsigned walk_packet(const KdTree& tree, const RayQuery* rays, int count) {
+unsigned walk_packet(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler) {
   RayLanes<N> lanes;
-  for (int i = 0; i < N; ++i) lanes.set(i, rays[i < count ? i : count - 1]);
+  for (int i = 0; i < N; ++i) lanes.set(i, i < count ? rays[i] : filler != nullptr ? *filler : rays[count - 1]);
   const RayPacket<N> p = lanes.packet();
   HitPacket<N> unused;
   vbool<N> occ(false);
@@ -39,28 +39,34 @@ unsigned walk_packet(const KdTree& tree, const RayQuery* rays, int count) {
 }
 
 template <ShadowWalk kWalk>
-unsigned walk(const KdTree& tree, const RayQuery* rays, int count, bool packet) {
-  if (packet) return walk_packet<RTC_ISA_WIDTH, kWalk>(tree, rays, count);
+unsigned walk(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet) {
+  if (packet) return walk_packet<RTC_ISA_WIDTH, kWalk>(tree, rays, count, filler);
   unsigned out = 0;
-  for (int i = 0; i < count; ++i) out |= walk_packet<1, kWalk>(tree, rays + i, 1) << i;
+  for (int i = 0; i < count; ++i) out |= walk_packet<1, kWalk>(tree, rays + i, 1, nullptr) << i;
   return out;
 }
 
 }  // namespace
 
-void walk_log(const KdTree& tree, const RayQuery* rays, int count, bool packet, ShadowWalk walk_order, WalkLog& log) {
+void walk_log(const KdTree& tree, const RayQuery* rays, int count, const RayQuery* filler, bool packet,
+              ShadowWalk walk_order, WalkLog& log) {
+  log.occluded = 0;
+  if (count < 1 || count > RTC_ISA_WIDTH) {
+    log.count = -1;
+    return;
+  }
   log.count = 0;
   LoggingTest<1>::current() = &log;
   LoggingTest<RTC_ISA_WIDTH>::current() = &log;
   switch (walk_order) {
     case ShadowWalk::Near:
-      log.occluded = walk<ShadowWalk::Near>(tree, rays, count, packet);
+      log.occluded = walk<ShadowWalk::Near>(tree, rays, count, filler, packet);
       break;
     case ShadowWalk::Far:
-      log.occluded = walk<ShadowWalk::Far>(tree, rays, count, packet);
+      log.occluded = walk<ShadowWalk::Far>(tree, rays, count, filler, packet);
       break;
     case ShadowWalk::Dense:
-      log.occluded = walk<ShadowWalk::Dense>(tree, rays, count, packet);
+      log.occluded = walk<ShadowWalk::Dense>(tree, rays, count, filler, packet);
       break;
   }
   LoggingTest<1>::current() = nullptr;
