@@ -10,13 +10,12 @@ with 2 threads and asserts what must hold whatever the machine's speed:
 
 usage: check_compare.py RTC_BENCH OUT_DIR
 """
-import json
 import os
 import shutil
 import subprocess
 import sys
 
-from bench_checks import check, failures, finite_positive
+from bench_checks import bench_json, check, failures, finite_positive
 
 
 def positive(row, key):
@@ -27,10 +26,7 @@ def positive(row, key):
 def main(bench, out_dir):
     shutil.rmtree(out_dir, ignore_errors=True)
     os.makedirs(out_dir)
-    run = subprocess.run([bench, "--threads", "2", "--reps", "3", "--compare-embree", "--json"],
-                         capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    stdout, rows = bench_json(bench, ["--threads", "2", "--reps", "3", "--compare-embree"])
     check(sorted(r["mode"] for r in rows) == ["full", "primary", "shadow"], f"modes {[r['mode'] for r in rows]}")
     for r in rows:
         for key in ("build_ms", "embree_build_ms", "embree_build_hq_ms", "build_vs_embree_hq_paired"):
@@ -55,7 +51,7 @@ def main(bench, out_dir):
             check(agree is not None and agree > 0.999, f"{r['mode']} {name}: agreement {agree}")
     path = os.path.join(out_dir, "compare.jsonl")
     with open(path, "w") as f:
-        f.write(run.stdout)
+        f.write(stdout)
     summary = subprocess.run([sys.executable, os.path.join(os.path.dirname(__file__), "summarize.py"), path],
                              capture_output=True, text=True)
     check(summary.returncode == 0, f"summarize.py exit status {summary.returncode}: {summary.stderr[-2000:]}")

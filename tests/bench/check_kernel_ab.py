@@ -13,22 +13,17 @@ machine's speed:
 
 usage: check_kernel_ab.py RTC_BENCH
 """
-import json
 import math
 import statistics
-import subprocess
 import sys
 
-from bench_checks import check, failures, finite_positive
+from bench_checks import bench_json, check, failures, finite_positive
 
 KERNELS = ("general", "specialised", "general_skip", "specialised_skip")
 
 
 def main(bench):
-    run = subprocess.run([bench, "--threads", "2", "--reps", "1", "--mode", "full", "--kernel-ab", "--ab-reps", "4",
-                          "--json"], capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    _, rows = bench_json(bench, ["--threads", "2", "--reps", "1", "--mode", "full", "--kernel-ab", "--ab-reps", "4"])
     check(len(rows) == 1, f"{len(rows)} JSON lines, expected 1")
     if not rows:
         return

@@ -17,13 +17,12 @@ shadow mode (dense and far timed, near not; "none" with no lights).
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """
-import json
 import os
 import subprocess
 import sys
 import tempfile
 
-from bench_checks import check, failures, finite_positive
+from bench_checks import bench_json, check, failures, finite_positive
 
 
 def check_table(lines, count, column):
@@ -44,10 +43,8 @@ def run_ab(bench, reps, options, column, check_row):
     """rtc-bench's primary and shadow modes with `options` (a first tree and an --ab-kd-* second):
     exit 0, one JSON line per mode, the same answers from both trees, finite figures, `check_row`
     on each line, and a summary table with `column`."""
-    run = subprocess.run([bench, "--threads", "2", "--reps", str(reps), "--build-reps", "1", "--mode", "primary",
-                          "--mode", "shadow", *options, "--json"], capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench {' '.join(options)}: exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    stdout, rows = bench_json(bench, ["--threads", "2", "--reps", str(reps), "--build-reps", "1", "--mode", "primary",
+                                      "--mode", "shadow", *options])
     check([r.get("mode") for r in rows] == ["primary", "shadow"], f"modes {[r.get('mode') for r in rows]}")
     for r in rows:
         ab = r.get("ab", {})
@@ -58,7 +55,7 @@ def run_ab(bench, reps, options, column, check_row):
             check(finite_positive(ab.get(key)), f"{mode}: ab.{key} = {ab.get(key)}")
         check(finite_positive(r.get("mrays_per_s")), f"{mode}: mrays_per_s = {r.get('mrays_per_s')}")
     if rows:
-        check_table(run.stdout, len(rows), column)
+        check_table(stdout, len(rows), column)
 
 
 def leaf_boxes(r, ab, mode):
@@ -108,11 +105,8 @@ def check_shadow_orders(bench):
     """--ab-shadow-order: the far order against the dense one, the same answers, finite figures,
     and auto's tally recorded (shadow_walks); with no lights (no shadow rays) auto never settles
     and says so ("none") instead of failing."""
-    run = subprocess.run([bench, "--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "shadow",
-                          "--shadow-order", "far", "--ab-shadow-order", "dense", "--json"],
-                         capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench --ab-shadow-order dense: exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    _, rows = bench_json(bench, ["--threads", "2", "--reps", "3", "--build-reps", "1", "--mode", "shadow",
+                                 "--shadow-order", "far", "--ab-shadow-order", "dense"])
     check(len(rows) == 1, f"--ab-shadow-order: {len(rows)} JSON lines, expected 1")
     for r in rows:
         ab = r.get("ab_shadow_order", {})
@@ -120,20 +114,14 @@ def check_shadow_orders(bench):
         check(ab.get("answers_differ") == 0, f"{ab.get('answers_differ')} answers differ between far and dense")
         for key in ("mrays_per_s", "speed_vs_first_paired"):
             check(finite_positive(ab.get(key)), f"ab_shadow_order.{key} = {ab.get(key)}")
-    run = subprocess.run([bench, "--threads", "2", "--reps", "2", "--build-reps", "1", "--mode", "shadow", "--json"],
-                         capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench --mode shadow: exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    _, rows = bench_json(bench, ["--threads", "2", "--reps", "2", "--build-reps", "1", "--mode", "shadow"])
     for r in rows:
         walks = r.get("shadow_walks", {})
         check(walks.get("preferred") in ("dense", "far"), f"auto settled on {walks.get('preferred')}")
         check(walks.get("near", {}).get("timed_rays") == 0, "auto timed near-first walks")
         for order in ("dense", "far"):
             check(walks.get(order, {}).get("timed_rays", 0) > 0, f"auto timed no {order} walks")
-    run = subprocess.run([bench, "--threads", "2", "--reps", "1", "--build-reps", "1", "--mode", "shadow",
-                          "--no-lights", "--json"], capture_output=True, text=True, timeout=240)
-    check(run.returncode == 0, f"rtc-bench --no-lights --mode shadow: exit status {run.returncode}: {run.stderr[-2000:]}")
-    rows = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    _, rows = bench_json(bench, ["--threads", "2", "--reps", "1", "--build-reps", "1", "--mode", "shadow", "--no-lights"])
     for r in rows:
         check(r.get("shadow_walks", {}).get("preferred") == "none",
               f"no lights: auto settled on {r.get('shadow_walks', {}).get('preferred')}")
