@@ -9,8 +9,10 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -243,7 +245,7 @@ TEST(Specialise, SamePixelsInEveryShadowOrder) {
             }
             EXPECT_EQ(rays[static_cast<int>(ShadowWalk::Near)], 0u) << v.name;
           } else {
-            EXPECT_EQ(rays[0] + rays[1] + rays[2], 0u) << v.name;
+            EXPECT_EQ(std::accumulate(std::begin(rays), std::end(rays), std::uint64_t{0}), 0u) << v.name;
           }
         }
       }
