@@ -256,6 +256,11 @@ int run(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
   app.add_flag("--cpu-time", rtc::bench::g_cpu_time,
                "time by process CPU time (summed over threads), not wall time: for A/B runs on a busy machine");
+  bool no_warm_up = false;
+  app.add_flag("--no-warm-up", no_warm_up,
+               "primary and shadow modes: time each contender's pass right after the contender before it, with no "
+               "untimed pass of its own first (the order up to 2026-11-29, which left Embree's 4- to 16-wide modes "
+               "the caches of another Embree mode and rtc's packets those of Embree's)");
   rtc::KdBuildOptions kd_options;
   app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);
   app.add_option("--kd-footprint", kd_options.footprint_pixels,
@@ -491,6 +496,7 @@ int run(int argc, char** argv) {
                          {"isa", std::string(rtc::isa_name(isa))},
                          {"intersector", rtc::intersector_name(scene.settings.intersector)},
                          {"shadow_order", rtc::shadow_order_name(shadow_order)},
+                         {"warm_up", !no_warm_up},
                          {"width", fs->width},
                          {"height", fs->height},
                          {"triangles", kd.triangles},
@@ -651,6 +657,15 @@ int run(int argc, char** argv) {
           trace_stream(kernels, *fs, s, true, true, scratch_ab_order, occ_ab_order, false, *ab_shadow_order,
                        &tally_ab_order);
         }});
+      }
+      // Each contender's timed pass follows an untimed pass of its own, so that every one is
+      // timed with its own structure in the caches, as in a renderer tracing frame after frame.
+      // Without it a contender starts with the caches of the one before: Embree's 4-, 8- and
+      // 16-wide modes those of another Embree mode over the same BVH, rtc's packets those of
+      // Embree-16. That cost rtc's packets 3-7% against Embree-16 on spd-balls at 2 threads
+      // (tests/bench/results/trace_experiments.md, session 43).
+      if (!no_warm_up) {
+        for (rtc::bench::Contender& c : contenders) c.untimed = c.fn;
       }
       const std::vector<std::vector<double>> times = rtc::bench::time_rounds_ms(reps, contenders);
       const double ms_packet = rtc::bench::median_of(times[0]);
