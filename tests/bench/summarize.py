@@ -153,6 +153,9 @@ def main(path):
              "and the Embree renderer's) takes one turn per repetition, and each ratio is paired: the median of the ratios "
              "of the two times taken in the same repetition, so a slow spell of the machine falls on both sides. "
              if any("ratio_vs_embree_best_paired" in r for r in rows) else "")
+          + ("In the primary and shadow modes each contender's timed turn follows an untimed pass of its own, so "
+             "that it is timed with its own tree or BVH in the caches (rtc-bench's warm-up, since 2026-11-29). "
+             if any(r.get("warm_up") for r in rows) else "")
           + "Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
           "quality (high quality in the first 3 repetitions only); s/M = rtc build seconds per million triangles. "
           "Full frame: rtc's Whitted renderer (shadows + "
