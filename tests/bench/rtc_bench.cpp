@@ -496,7 +496,6 @@ int run(int argc, char** argv) {
                          {"isa", std::string(rtc::isa_name(isa))},
                          {"intersector", rtc::intersector_name(scene.settings.intersector)},
                          {"shadow_order", rtc::shadow_order_name(shadow_order)},
-                         {"warm_up", !no_warm_up},
                          {"width", fs->width},
                          {"height", fs->height},
                          {"triangles", kd.triangles},
@@ -555,6 +554,7 @@ int run(int argc, char** argv) {
     out["mode"] = mode;
     if (mode == "primary" || mode == "shadow") {
       const bool shadow = mode == "shadow";
+      out["warm_up"] = !no_warm_up;  // frames (full) take no warm-up pass
       const RayStream shadows = shadow ? shadow_stream(*fs, primary, hits) : RayStream{};
       const RayStream& s = shadow ? shadows : primary;
       std::vector<std::uint8_t> occ, occ_single;
