@@ -51,9 +51,16 @@ ATTEMPTS = 6
 # moving sphere, the frame start) weigh 4x as much against the link time as at 1024x1024. The
 # 512x512 frames are still compared bit for bit. The rgba8+zstd case checks the compressed
 # path's pixels only: it is CPU-bound here (the link could carry ~300 such frames a second).
+# The 1024x1024 case traces every frame whole (--temporal off): with temporal coherence (on by
+# default) the frames after the first retrace about an eighth of the tiles, 3.8-4.4 MB in 0.36 s
+# of link time, and their fixed costs (each worker's kd-tree rebuild for the moving sphere, the
+# frame's first tiles) no longer hide behind the link: on 2026-11-30 they reached 0.84-0.90 of
+# the bound in 13 runs of 13, in an hour when this VM ran slow, while the first (whole) frame
+# reached 0.96 of its own bound. Whole frames keep the premise of the check, that the link is
+# the limit.
 CHECKS = [
     ("512x512 float+none", 512, 512, "0-5", "float", "none", "exr", ["--exr-float"], False),
-    ("1024x1024 float+none", 1024, 1024, "0-3", "float", "none", "exr", ["--exr-float"], True),
+    ("1024x1024 float+none", 1024, 1024, "0-3", "float", "none", "exr", ["--exr-float", "--temporal", "off"], True),
     ("256x256 rgba8+zstd", 256, 256, "0-1", "rgba8", "zstd", "png", [], False),
 ]
 
