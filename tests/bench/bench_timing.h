@@ -43,7 +43,8 @@ double time_median_ms(int reps, Fn&& fn) {
 
 /// One contender of a round-robin timing: `fn` is timed, `untimed` runs before each call outside
 /// the timing (builders release their previous result there, so that freeing it is not counted
-/// as part of the next build); `rounds` limits the rounds it takes part in (0: all).
+/// as part of the next build; rtc-bench's ray streams run `fn` there once more, so that each is
+/// timed with its own data in the caches); `rounds` limits the rounds it takes part in (0: all).
 struct Contender {
   std::function<void()> fn;
   std::function<void()> untimed = [] {};

@@ -133,6 +133,7 @@ def main(path):
         spans[(scene, threads, mode)] = span(group, mode)
     scenes = sorted({k[0] for k in by}, key=lambda s: (min(by[k]["primary"]["triangles"] for k in by if k[0] == s), s))
     any_row = next(iter(rows))
+    streams = [r for r in rows if r["mode"] in ("primary", "shadow")]  # the modes with warm-up passes
     print("# rtc-bench --compare-embree on the shared scenes\n")
     # The machine as the run saw it: rtc's widest ISA there, and Embree's widest packet mode.
     vector = "AVX-512" if any_row["isa"] == "avx512" else ("AVX2, no AVX-512" if any_row["isa"] == "avx2" else "SSE4.2")
@@ -155,7 +156,7 @@ def main(path):
              if any("ratio_vs_embree_best_paired" in r for r in rows) else "")
           + ("In the primary and shadow modes each contender's timed turn follows an untimed pass of its own, so "
              "that it is timed with its own tree or BVH in the caches (rtc-bench's warm-up, since 2026-11-29). "
-             if any(r.get("warm_up") for r in rows) else "")
+             if streams and all(r.get("warm_up") for r in streams) else "")
           + "Build: rtc kd-tree vs Embree's BVH at medium (default) and high "
           "quality (high quality in the first 3 repetitions only); s/M = rtc build seconds per million triangles. "
           "Full frame: rtc's Whitted renderer (shadows + "

@@ -11,7 +11,8 @@ check  the CI test: for each configuration a few frames; every frame equals rtc-
        of the measured one (frames per second over the master's frame intervals, the first
        frame left out: it includes the start of the pipeline).
 table  the frame-rate table (fps_table.sh, results.md): every wire format and compression at
-       512x512 and 1024x1024, --frames frames each, discarded; writes Markdown to --out.
+       512x512 and 1024x1024, --frames frames each, traced whole (--temporal off), discarded;
+       writes Markdown to --out.
 
 Reuses tests/cluster/cluster_test.py (processes, stats, frame comparison through oiiotool's
 pixel hashes). Every wait has a deadline; every process started is killed by pid at the end.
@@ -60,7 +61,7 @@ ATTEMPTS = 6
 # the limit.
 CHECKS = [
     ("512x512 float+none", 512, 512, "0-5", "float", "none", "exr", ["--exr-float"], False),
-    ("1024x1024 float+none", 1024, 1024, "0-3", "float", "none", "exr", ["--exr-float", "--temporal", "off"], True),
+    ("1024x1024 float+none", 1024, 1024, "0-3", "float", "none", "exr", ["--exr-float", *ct.WHOLE], True),
     ("256x256 rgba8+zstd", 256, 256, "0-1", "rgba8", "zstd", "png", [], False),
 ]
 
@@ -238,7 +239,7 @@ def case_table(c):
                 tag = f"{size}-{wire}-{comp}"
                 _, records, summary, load = c.cluster(
                     tag, ["--width", size, "--height", size], frames=f"0-{c.args.frames - 1}",
-                    master_extra=["--wire", wire, "--compress", comp], timeout=300)
+                    master_extra=["--wire", wire, "--compress", comp, *ct.WHOLE], timeout=300)
                 measured, bound, frame_bytes = rates(records, summary)
                 message_mbit = summary["link_mbit_per_s"]
                 achieved_mbit = measured * frame_bytes * 8 / 1e6
@@ -260,7 +261,8 @@ def case_table(c):
             f.write(f"| {size}x{size} | {wire} | {comp} | {mb:.3f} | {cr:.2f} | {bound:.2f} | {measured:.2f} | "
                     f"{ratio:.2f} | {mbit:.1f} | {load.cpu_s / load.wall_s:.2f} | {100 * load.machine_busy:.0f}% | "
                     f"{limit} |\n")
-        f.write(f"\nEach row: {c.args.frames} frames of the built-in scene, discarded (no --out); achieved fps over "
+        f.write(f"\nEach row: {c.args.frames} frames of the built-in scene, each traced whole (--temporal off), discarded "
+                f"(no --out); achieved fps over "
                 f"the frames after the first. Link: {LINK_MBPS} Mbit/s line rate per host; the master's bound counts "
                 f"{message_mbit:.1f} Mbit/s of messages into the master; iperf3 TCP goodput w1 -> master: "
                 f"{goodput_text}.\n")
