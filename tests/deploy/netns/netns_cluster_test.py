@@ -261,9 +261,8 @@ def case_table(c):
             f.write(f"| {size}x{size} | {wire} | {comp} | {mb:.3f} | {cr:.2f} | {bound:.2f} | {measured:.2f} | "
                     f"{ratio:.2f} | {mbit:.1f} | {load.cpu_s / load.wall_s:.2f} | {100 * load.machine_busy:.0f}% | "
                     f"{limit} |\n")
-        f.write(f"\nEach row: {c.args.frames} frames of the built-in scene, each traced whole (--temporal off), discarded "
-                f"(no --out); achieved fps over "
-                f"the frames after the first. Link: {LINK_MBPS} Mbit/s line rate per host; the master's bound counts "
+        f.write(f"\nEach row: {c.args.frames} frames of the built-in scene, each traced whole (--temporal off), "
+                f"discarded (no --out); achieved fps over the frames after the first. Link: {LINK_MBPS} Mbit/s line rate per host; the master's bound counts "
                 f"{message_mbit:.1f} Mbit/s of messages into the master; iperf3 TCP goodput w1 -> master: "
                 f"{goodput_text}.\n")
     print(f"wrote {c.args.out}")
