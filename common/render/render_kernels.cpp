@@ -28,6 +28,7 @@
 #include "common/render/render_kernels.h"
 #include "common/render/shading.h"
 #include "common/render/temporal.h"
+#include "common/render/trace_ticks.h"
 
 RTC_ISA_BEGIN
 namespace rtc::RTC_ISA_NS {
@@ -62,6 +63,7 @@ RayPacket<N> to_space(const RayPacket<N>& p, const TreeSpace& s) {
 /// Closest hits of the lanes in `lanes_mask`, from rtc's kd-trees or the external tracer.
 template <int N>
 void closest_hits(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, RayHit (&out)[N]) {
+  RTC_TRACE_TICK_SCOPE(fs.tracer != nullptr, static_cast<unsigned>(std::popcount(lanes_mask)), N);
   if (fs.tracer != nullptr) {
     RayQuery q[N];
     RayHit h[N];
@@ -104,6 +106,7 @@ template <int N>
 unsigned occluded_lanes(const FrameState& fs, const RayLanes<N>& rays, unsigned lanes_mask, ShadowOrderChooser& order,
                         unsigned* by_static = nullptr) {
   if (by_static != nullptr) *by_static = 0;
+  RTC_TRACE_TICK_SCOPE(fs.tracer != nullptr, static_cast<unsigned>(std::popcount(lanes_mask)), N);
   if (fs.tracer != nullptr) {
     RayQuery q[N];
     std::uint8_t occ[N];
@@ -539,6 +542,7 @@ unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned 
                         std::uint32_t* terms, Bounces* bounces) {
   (depth == 0 ? counts.primary : counts.reflection) += static_cast<std::uint64_t>(std::popcount(active));
   RayHit hit[N];
+  if constexpr (kTraceTicks) trace_tick_next(depth == 0 ? TraceCall::Primary : TraceCall::Mirror);
   closest_hits<N>(fs, rays, active, hit);
   if (marks != nullptr) mark_paths<N>(*marks, rays, active, hit);
 
@@ -582,6 +586,7 @@ unsigned trace_radiance(const FrameState& fs, const RayLanes<N>& rays, unsigned 
         if (want == 0) continue;
         counts.shadow += static_cast<std::uint64_t>(std::popcount(want));
         unsigned by_static = 0;
+        if constexpr (kTraceTicks) trace_tick_next(TraceCall::Shadow, light_index);
         const unsigned blocked = occluded_lanes<N>(fs, shadow, want, orders.at(light_index, depth),
                                                    marks != nullptr ? &by_static : nullptr);
         if (marks != nullptr) {
@@ -773,6 +778,7 @@ void trace_batch(const FrameState& fs, Bounces& bounces, std::vector<BatchPacket
     }
     counts.reflection += static_cast<std::uint64_t>(n);
     RayHit hit[N];
+    if constexpr (kTraceTicks) trace_tick_next(TraceCall::Mirror);
     closest_hits<N>(fs, p.rays, p.active, hit);
     p.sh.surfaces(fs, p.rays, p.active, hit, p.lanes, nullptr);
   }
@@ -813,6 +819,7 @@ void trace_batch(const FrameState& fs, Bounces& bounces, std::vector<BatchPacket
                     glm::vec3(r.dir[0][i], r.dir[1][i], r.dir[2][i]), r.t_max[i]);
         }
         const unsigned all = (1u << n) - 1u;  // n <= N <= 16
+        if constexpr (kTraceTicks) trace_tick_next(TraceCall::Shadow, light_index);
         const unsigned blocked = occluded_lanes<N>(fs, group, all, chooser);
         for (int l = 0; l < n; ++l) {
           if (!((blocked >> l) & 1u)) continue;

@@ -32,6 +32,7 @@
 #include "common/render/render_kernels.h"
 #include "common/render/renderer.h"
 #include "common/render/shading.h"
+#include "common/render/trace_ticks.h"
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
@@ -191,6 +192,61 @@ nlohmann::json walk_json(const rtc::WalkStats& w) {
   nlohmann::json out = nlohmann::json::object();
   for (const auto& [name, field] : rtc::kWalkStatsFields) out[name] = w.*field;
   return out;
+}
+
+// The trace-call tally (RTC_TRACE_TICKS builds) as JSON, a row per kind of call with each
+// side's ticks, calls and rays per frame (`frames`: rtc's, the external tracer's).
+nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int width, const double (&frames)[2]) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const rtc::TraceTickRow& r : rows) {
+    const char* side = r.external ? "embree" : "rtc";
+    nlohmann::json* row = nullptr;
+    for (nlohmann::json& o : out) {
+      if (o["call"] == static_cast<int>(r.call) && o["light"] == r.light && o["fill"] == static_cast<int>(r.fill)) row = &o;
+    }
+    if (row == nullptr) {
+      out.push_back({{"name", rtc::trace_tick_row_name(r, static_cast<unsigned>(width))},
+                     {"call", static_cast<int>(r.call)},
+                     {"light", r.light},
+                     {"fill", static_cast<int>(r.fill)}});
+      row = &out.back();
+    }
+    const double f = frames[r.external ? 1 : 0];
+    (*row)[side] = {{"ticks_per_frame", static_cast<double>(r.ticks) / f},
+                    {"calls_per_frame", static_cast<double>(r.calls) / f},
+                    {"rays_per_frame", static_cast<double>(r.rays) / f}};
+  }
+  return out;
+}
+
+// The tally as a table: per frame, each side's M ticks and ticks per call, and the external
+// tracer's ticks over rtc's (above 1: rtc spends less there).
+void print_trace_ticks(const nlohmann::json& rows, bool compare) {
+  std::printf("          trace calls (RTC_TRACE_TICKS build; per frame: M ticks, ticks per call, rays per call%s):\n",
+              compare ? "; Embree renderer's ticks over rtc's" : "");
+  double total[2] = {0.0, 0.0};
+  for (const nlohmann::json& r : rows) {
+    std::string line = fmt::format("            {:<34}", r["name"].get<std::string>());
+    double t[2] = {0.0, 0.0};
+    int k = 0;
+    for (const char* side : {"rtc", "embree"}) {
+      if (r.contains(side)) {
+        const nlohmann::json& s = r[side];
+        t[k] = s["ticks_per_frame"].get<double>();
+        total[k] += t[k];
+        const double calls = s["calls_per_frame"].get<double>();
+        line += fmt::format(" {} {:8.2f} M ({:7.0f}/call, {:5.2f} rays)", side, t[k] / 1e6, t[k] / calls,
+                            s["rays_per_frame"].get<double>() / calls);
+      }
+      ++k;
+    }
+    if (t[0] > 0.0 && t[1] > 0.0) line += fmt::format("  {:.3f}", t[1] / t[0]);
+    std::printf("%s\n", line.c_str());
+  }
+  if (total[0] > 0.0 && total[1] > 0.0) {
+    std::printf("            %-34s rtc %8.2f M, embree %8.2f M  %.3f\n", "all trace calls", total[0] / 1e6, total[1] / 1e6,
+                total[1] / total[0]);
+  }
 }
 
 std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {
@@ -906,6 +962,7 @@ int run(int argc, char** argv) {
       rtc::TileRayCounts counts, ecounts;
       rtc::Image ours, theirs;
       double ms = 0.0, ems = 0.0, frame_paired = 0.0;
+      rtc::reset_trace_ticks();  // the tally of this mode's frames (RTC_TRACE_TICKS builds)
       if (kernel_ab) {
         // General and specialised kernels, without and with empty-space skipping, one frame of
         // each in turn per repetition (so slow spells of a busy machine hit all four alike), all
@@ -1050,6 +1107,13 @@ int run(int argc, char** argv) {
                                          : "; not paired: with --kernel-ab the Embree renderer runs after the kernels",
                       100.0 * frac);
         }
+      }
+      if (rtc::kTraceTicks) {
+        // Frames each side rendered: rtc's frames (four kernels each repetition with
+        // --kernel-ab), the Embree renderer's.
+        const double frames[2] = {static_cast<double>(kernel_ab ? 4 * ab_reps : reps), static_cast<double>(reps)};
+        out["trace_ticks"] = trace_ticks_json(rtc::trace_ticks(), kernels.packet_width, frames);
+        if (!json) print_trace_ticks(out["trace_ticks"], compare);
       }
     }
     if (json) std::printf("%s\n", out.dump().c_str());
