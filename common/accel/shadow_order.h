@@ -9,9 +9,8 @@
 #include <string>
 #include <string_view>
 
-#include <x86intrin.h>
-
 #include "common/base/error.h"
+#include "common/simd/tsc.h"
 
 namespace rtc {
 
@@ -154,7 +153,7 @@ class ShadowOrderChooser {
     if (packets_ == 0) start_run();
     const std::uint32_t n = packets_++;
     timing_ = n >= kWarmUp && (n - kWarmUp) % time_every_ == 0;
-    if (timing_) clock_ = __rdtsc();
+    if (timing_) clock_ = read_tsc();
     return walk_;
   }
 
@@ -163,7 +162,7 @@ class ShadowOrderChooser {
 
   /// After the walk of the packet next() last answered for, of `rays` rays: its time, when timed.
   void done(unsigned rays) {
-    if (timing_) record(__rdtsc() - clock_, rays);
+    if (timing_) record(read_tsc() - clock_, rays);
   }
 
   /// Adds `ticks` (time stamp counter ticks) for `rays` rays to the run's figures; done() calls it.

@@ -1,3 +1,5 @@
+// The trace-call tally (trace_ticks.h): atomic counters by side, kind and lane fill, shared by
+// the threads that render.
 #include "common/render/trace_ticks.h"
 
 #include <algorithm>
@@ -84,10 +86,13 @@ std::string trace_tick_row_name(const TraceTickRow& row, unsigned width) {
       name += ", " + std::to_string(width) + " of " + std::to_string(width) + " lanes";
       break;
     case LaneFill::MoreThanHalf:
-      name += ", " + std::to_string(half + 1) + "-" + std::to_string(width - 1) + " of " + std::to_string(width) + " lanes";
+      name += ", " + std::to_string(half + 1);
+      if (half + 1 < width - 1) name += "-" + std::to_string(width - 1);
+      name += " of " + std::to_string(width) + " lanes";
       break;
     case LaneFill::AtMostHalf:
-      name += ", 1-" + std::to_string(half) + " of " + std::to_string(width) + " lanes";
+      name += half > 1 ? ", 1-" + std::to_string(half) : std::string(", 1");
+      name += " of " + std::to_string(width) + " lanes";
       break;
   }
   return name;

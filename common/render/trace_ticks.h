@@ -7,12 +7,13 @@
 // mode prints the tally beside the Embree renderer's (README, "rtc-bench"). Not compiled per ISA.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include <x86intrin.h>
+#include "common/simd/tsc.h"
 
 #ifndef RTC_TRACE_TICKS
 #define RTC_TRACE_TICKS 0
@@ -76,7 +77,10 @@ inline thread_local TraceTickWhat t_trace_tick_what;
 /// calls it under `if constexpr (kTraceTicks)`, so that a default build's kernels do not even
 /// compute its arguments.
 inline void trace_tick_next(TraceCall call, std::size_t light = 0) {
-  if constexpr (kTraceTicks) t_trace_tick_what = {call, call == TraceCall::Shadow ? static_cast<int>(light) : -1};
+  if constexpr (kTraceTicks) {
+    const std::size_t row = std::min<std::size_t>(light, kTraceTickLights - 1);
+    t_trace_tick_what = {call, call == TraceCall::Shadow ? static_cast<int>(row) : -1};
+  }
 }
 
 /// Times one trace call of `rays` rays in a packet of `width` lanes, from construction to
@@ -87,12 +91,12 @@ class TraceTickScope {
   TraceTickScope(bool external, unsigned rays, unsigned width) : external_(external), rays_(rays), width_(width) {
     if constexpr (kTraceTicks) {
       what_ = t_trace_tick_what;
-      start_ = __rdtsc();
+      start_ = read_tsc();
     }
   }
   ~TraceTickScope() {
     if constexpr (kTraceTicks) {
-      add_trace_ticks(external_, what_.call, what_.light, lane_fill(rays_, width_), __rdtsc() - start_, rays_);
+      add_trace_ticks(external_, what_.call, what_.light, lane_fill(rays_, width_), read_tsc() - start_, rays_);
     }
   }
   TraceTickScope(const TraceTickScope&) = delete;
@@ -109,7 +113,9 @@ class TraceTickScope {
 
 /// One TraceTickScope for the rest of the enclosing block, in an RTC_TRACE_TICKS build; nothing
 /// at all otherwise, its arguments not even evaluated, so that a default build's trace calls
-/// compile to the instructions they had without it (checked by disassembling them).
+/// compile to the instructions they had without it (when it came in, render_kernels.cpp's
+/// objects disassembled to the same instructions as before, on every ISA; an empty timer object
+/// and the kind passed as an argument had changed their register allocation).
 #if RTC_TRACE_TICKS
 #define RTC_TRACE_TICK_SCOPE(external, rays, width) const ::rtc::TraceTickScope rtc_trace_tick_scope_(external, rays, width)
 #else

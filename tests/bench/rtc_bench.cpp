@@ -195,8 +195,8 @@ nlohmann::json walk_json(const rtc::WalkStats& w) {
 }
 
 // The trace-call tally (RTC_TRACE_TICKS builds) as JSON, a row per kind of call with each
-// side's ticks, calls and rays per frame (`frames`: rtc's, the external tracer's).
-nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int width, const double (&frames)[2]) {
+// side's ticks, calls and rays per frame (`frames`: how many each side rendered).
+nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int width, double frames) {
   nlohmann::json out = nlohmann::json::array();
   for (const rtc::TraceTickRow& r : rows) {
     const char* side = r.external ? "embree" : "rtc";
@@ -211,7 +211,7 @@ nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int 
                      {"fill", static_cast<int>(r.fill)}});
       row = &out.back();
     }
-    const double f = frames[r.external ? 1 : 0];
+    const double f = frames;
     (*row)[side] = {{"ticks_per_frame", static_cast<double>(r.ticks) / f},
                     {"calls_per_frame", static_cast<double>(r.calls) / f},
                     {"rays_per_frame", static_cast<double>(r.rays) / f}};
@@ -243,10 +243,10 @@ void print_trace_ticks(const nlohmann::json& rows, bool compare) {
     if (t[0] > 0.0 && t[1] > 0.0) line += fmt::format("  {:.3f}", t[1] / t[0]);
     std::printf("%s\n", line.c_str());
   }
-  if (total[0] > 0.0 && total[1] > 0.0) {
-    std::printf("            %-34s rtc %8.2f M, embree %8.2f M  %.3f\n", "all trace calls", total[0] / 1e6, total[1] / 1e6,
-                total[1] / total[0]);
-  }
+  std::string line = fmt::format("            {:<34} rtc {:8.2f} M", "all trace calls", total[0] / 1e6);
+  if (compare) line += fmt::format(", embree {:8.2f} M", total[1] / 1e6);
+  if (total[0] > 0.0 && total[1] > 0.0) line += fmt::format("  {:.3f}", total[1] / total[0]);
+  std::printf("%s\n", line.c_str());
 }
 
 std::vector<RayHit> by_pixel(const RayStream& s, const std::vector<RayHit>& hits, std::size_t pixels) {
@@ -1108,11 +1108,13 @@ int run(int argc, char** argv) {
                       100.0 * frac);
         }
       }
-      if (rtc::kTraceTicks) {
-        // Frames each side rendered: rtc's frames (four kernels each repetition with
-        // --kernel-ab), the Embree renderer's.
-        const double frames[2] = {static_cast<double>(kernel_ab ? 4 * ab_reps : reps), static_cast<double>(reps)};
-        out["trace_ticks"] = trace_ticks_json(rtc::trace_ticks(), kernels.packet_width, frames);
+      if (rtc::kTraceTicks && kernel_ab) {
+        // rtc's rows would mix four kernels (with and without empty-space skipping) against the
+        // Embree renderer's one.
+        if (!json) std::printf("          trace calls: not tallied with --kernel-ab\n");
+      } else if (rtc::kTraceTicks) {
+        // Both sides rendered `reps` frames.
+        out["trace_ticks"] = trace_ticks_json(rtc::trace_ticks(), kernels.packet_width, static_cast<double>(reps));
         if (!json) print_trace_ticks(out["trace_ticks"], compare);
       }
     }

@@ -58,6 +58,12 @@ TEST(TraceTicks, RowsSumTheirCallsInAFixedOrder) {
   EXPECT_EQ(trace_tick_row_name(rows[1], 16), "mirror, 9-15 of 16 lanes");
   EXPECT_EQ(trace_tick_row_name(rows[2], 16), "shadow, light 1, 1-8 of 16 lanes");
   EXPECT_EQ(trace_tick_row_name(rows[3], 16), "shadow, light 7+, 16 of 16 lanes");
+  // Narrower packets: AVX2's 8 lanes, SSE4.2's 4, single rays.
+  EXPECT_EQ(trace_tick_row_name(rows[1], 8), "mirror, 5-7 of 8 lanes");
+  EXPECT_EQ(trace_tick_row_name(rows[2], 8), "shadow, light 1, 1-4 of 8 lanes");
+  EXPECT_EQ(trace_tick_row_name(rows[1], 4), "mirror, 3 of 4 lanes");
+  EXPECT_EQ(trace_tick_row_name(rows[2], 4), "shadow, light 1, 1-2 of 4 lanes");
+  EXPECT_EQ(trace_tick_row_name(rows[0], 1), "primary, 1 of 1 lanes");
   reset_trace_ticks();
   EXPECT_TRUE(trace_ticks().empty());
 }
