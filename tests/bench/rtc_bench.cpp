@@ -33,6 +33,7 @@
 #include "common/render/renderer.h"
 #include "common/render/shading.h"
 #include "common/render/trace_ticks.h"
+#include "common/simd/tsc.h"
 #include "common/scene/load.h"
 #include "tests/support/embree_oracle.h"
 #include "tests/support/hit_compare.h"
@@ -963,6 +964,8 @@ int run(int argc, char** argv) {
       rtc::Image ours, theirs;
       double ms = 0.0, ems = 0.0, frame_paired = 0.0;
       rtc::reset_trace_ticks();  // the tally of this mode's frames (RTC_TRACE_TICKS builds)
+      const std::uint64_t tsc_start = rtc::read_tsc();
+      rtc::Timer tsc_timer;
       if (kernel_ab) {
         // General and specialised kernels, without and with empty-space skipping, one frame of
         // each in turn per repetition (so slow spells of a busy machine hit all four alike), all
@@ -1113,7 +1116,10 @@ int run(int argc, char** argv) {
         // Embree renderer's one.
         if (!json) std::printf("          trace calls: not tallied with --kernel-ab\n");
       } else if (rtc::kTraceTicks) {
-        // Both sides rendered `reps` frames.
+        // Both sides rendered `reps` frames. The counter's rate, from the frames' own span, turns
+        // frame times into ticks (the rest of a frame: its time less its trace calls).
+        out["trace_ticks_tsc_ghz"] =
+            static_cast<double>(rtc::read_tsc() - tsc_start) / (tsc_timer.elapsed_ms() * 1e6);
         out["trace_ticks"] = trace_ticks_json(rtc::trace_ticks(), kernels.packet_width, static_cast<double>(reps));
         if (!json) print_trace_ticks(out["trace_ticks"], compare);
       }

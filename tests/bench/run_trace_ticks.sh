@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Where each view's Whitted frame spends its tracing time, rtc against the Embree renderer: the
+# renderer's trace calls timed by kind (primary rays, mirror rays, each light's shadow rays) and by
+# how many of a packet's lanes carry a ray, one thread, the best ISA. Builds the ticks preset
+# (RTC_TRACE_TICKS: the trace calls read the time stamp counter, about 100 ticks a call on both
+# sides) into build/ticks if it is not there.
+# Usage: tests/bench/run_trace_ticks.sh [SCENES_DIR] [NAME] [REPS]
+#   SCENES_DIR may be a folder of links to some views of the pack.
+# Writes tests/bench/results/NAME.jsonl and NAME.md (default NAME: trace_ticks; REPS: 9 frames).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+scenes=${1:-../shared/scenes}
+name=${2:-trace_ticks}
+reps=${3:-9}
+bench=build/ticks/tests/bench/rtc-bench
+[ -d "$scenes" ] || { echo "run_trace_ticks: $scenes is not a folder (the shared scene pack)" >&2; exit 1; }
+if [ ! -x "$bench" ]; then
+  cmake --preset ticks >/dev/null
+  cmake --build --preset ticks --target rtc-bench
+fi
+out=tests/bench/results
+mkdir -p "$out"
+jsonl=$out/$name.jsonl
+: > "$jsonl.tmp"
+for view in $(find -L "$scenes" -name 'view*.json' | sort); do
+  echo "rtc-bench (ticks build) $view" >&2
+  "$bench" "$view" --threads 1 --reps "$reps" --build-reps 1 --mode full --compare-embree --json >> "$jsonl.tmp"
+done
+mv "$jsonl.tmp" "$jsonl"
+python3 tests/bench/summarize_trace_ticks.py "$jsonl" > "$out/$name.md"
+echo "wrote $jsonl and $out/$name.md" >&2
