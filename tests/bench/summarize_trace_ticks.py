@@ -21,15 +21,22 @@ def main(path):
         sys.exit(f"summarize_trace_ticks: {path} has no trace-call tally (rtc-bench not built with RTC_TRACE_TICKS)")
     if any("embree_frame_ms" not in v for v in views):
         sys.exit(f"summarize_trace_ticks: {path} lacks the Embree renderer (run with --compare-embree)")
+    if any("trace_ticks_tsc_ghz" not in v for v in views):
+        sys.exit(f"summarize_trace_ticks: {path} lacks the counter's rate (trace_ticks_tsc_ghz: an older rtc-bench)")
+    if any(v.get("threads") != 1 for v in views):
+        sys.exit(f"summarize_trace_ticks: {path} has runs with more than one thread (ticks add up over threads, "
+                 "frame times do not; run with --threads 1)")
     cpu = views[0].get("cpu", "?")
     print("# Where the frames' tracing time goes: rtc against the Embree renderer\n")
     print("Regenerate with `tests/bench/run_trace_ticks.sh` (the `ticks` preset, `RTC_TRACE_TICKS`: rtc-bench whose "
           "renderer reads the time stamp counter around its two trace calls, closest hits and occlusion, on rtc's "
           f"kd-trees and on the Embree renderer's tracer alike; one thread; {cpu}). Per frame (the mean over the "
           "frames each side rendered), by kind of call and by how many of the packet's lanes carry a ray: each "
-          "side's ticks (M), ticks per call and rays per call, and the Embree renderer's ticks over rtc's (above 1: "
+          "side's ticks (M) and ticks per call, rays per call (the same rays on both sides), and the Embree "
+          "renderer's ticks over rtc's (above 1: "
           "rtc spends less there). 'Rest of the frame': the frame's median time at the counter's rate less its "
-          "trace calls (shading, ray set-up, tiles), the same code on both sides. Frame ratio: the Embree "
+          "trace calls' mean (shading, ray set-up, tiles), the same code on both sides; median against mean, "
+          "so a few M ticks either way are noise. Frame ratio: the Embree "
           "renderer's time over rtc's (above 1: rtc faster). 'rtc less Embree': rtc's ticks less the Embree "
           "renderer's per class of call, summed over the lights (negative: rtc spends less). The clock reads cost about 100 ticks a call on both "
           "sides.\n")
@@ -42,7 +49,7 @@ def main(path):
     classes = ((0, None), (1, None), (2, 0), (2, 1), (2, 2))
     for v in views:
         rows = v["trace_ticks"]
-        ghz = v.get("trace_ticks_tsc_ghz", 0.0)
+        ghz = v["trace_ticks_tsc_ghz"]
         r = sum(side(x, "rtc")["ticks_per_frame"] for x in rows)
         e = sum(side(x, "embree")["ticks_per_frame"] for x in rows)
         rest_r = v["frame_ms"] * ghz * 1e6 - r
