@@ -80,22 +80,22 @@ std::string trace_tick_row_name(const TraceTickRow& row, unsigned width) {
     name += ", light " + std::to_string(row.light);
     if (row.light == kTraceTickLights - 1) name += "+";
   }
+  // The fill's range of lanes, "lo" or "lo-hi".
   const unsigned half = width / 2;
+  unsigned lo = width, hi = width;
   switch (row.fill) {
     case LaneFill::Full:
-      name += ", " + std::to_string(width) + " of " + std::to_string(width) + " lanes";
       break;
     case LaneFill::MoreThanHalf:
-      name += ", " + std::to_string(half + 1);
-      if (half + 1 < width - 1) name += "-" + std::to_string(width - 1);
-      name += " of " + std::to_string(width) + " lanes";
+      lo = half + 1, hi = width - 1;
       break;
     case LaneFill::AtMostHalf:
-      name += half > 1 ? ", 1-" + std::to_string(half) : std::string(", 1");
-      name += " of " + std::to_string(width) + " lanes";
+      lo = 1, hi = half;
       break;
   }
-  return name;
+  name += ", " + std::to_string(lo);
+  if (hi > lo) name += "-" + std::to_string(hi);
+  return name + " of " + std::to_string(width) + " lanes";
 }
 
 }  // namespace rtc

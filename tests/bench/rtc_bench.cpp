@@ -196,7 +196,7 @@ nlohmann::json walk_json(const rtc::WalkStats& w) {
 }
 
 // The trace-call tally (RTC_TRACE_TICKS builds) as JSON, a row per kind of call with each
-// side's ticks, calls and rays per frame (`frames`: how many each side rendered).
+// side's ticks, calls and rays per frame (`frames`: how many each side rendered, the same).
 nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int width, double frames) {
   nlohmann::json out = nlohmann::json::array();
   for (const rtc::TraceTickRow& r : rows) {
@@ -212,10 +212,9 @@ nlohmann::json trace_ticks_json(const std::vector<rtc::TraceTickRow>& rows, int 
                      {"fill", static_cast<int>(r.fill)}});
       row = &out.back();
     }
-    const double f = frames;
-    (*row)[side] = {{"ticks_per_frame", static_cast<double>(r.ticks) / f},
-                    {"calls_per_frame", static_cast<double>(r.calls) / f},
-                    {"rays_per_frame", static_cast<double>(r.rays) / f}};
+    (*row)[side] = {{"ticks_per_frame", static_cast<double>(r.ticks) / frames},
+                    {"calls_per_frame", static_cast<double>(r.calls) / frames},
+                    {"rays_per_frame", static_cast<double>(r.rays) / frames}};
   }
   return out;
 }
