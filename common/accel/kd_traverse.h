@@ -568,7 +568,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   if (none(active)) return;
   const Test<N> test(ray, active);
   WalkCounter<kWalkStats> stats(N > 1, kOcclusion);  // counts nothing unless built with RTC_WALK_STATS
-  if constexpr (kWalkStats) stats.start(static_cast<std::uint32_t>(std::popcount(bits(active))));
+  if constexpr (kWalkStats) {
+    stats.start(static_cast<std::uint32_t>(std::popcount(bits(active))));
+    stats.read(nodes, sizeof(KdNode));  // the root
+  }
 
   // Plain arrays, not vfloat members: a stack of 64 vector entries would otherwise be
   // zero-initialised on every call, which measured as a large share of a primary ray's cost.
@@ -626,6 +629,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
     }
     if (!node.is_leaf()) {
       stats.inner();
+      if constexpr (kWalkStats) stats.read(&nodes[node.left()], 2 * sizeof(KdNode));  // the children (adjacent)
       const int axis = node.axis();
       if constexpr (N > 1) t_split = plane_t(node);
       const std::uint32_t sign = (sign_bits >> axis) & 1u;
@@ -704,6 +708,11 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       const std::uint32_t count = node.tri_count();
       stats.leaf(count);
       if constexpr (N > 1) prefetch_leaf(leaf, count, node.has_box());
+      if constexpr (kWalkStats) {
+        // Packets ask for all of the leaf's slots at once; a single ray reads its box first.
+        const std::uint32_t slots = N > 1 ? count + (node.has_box() ? 1u : 0u) : (node.has_box() ? 1u : 0u);
+        stats.read(leaf - (node.has_box() ? 1 : 0), slots * sizeof(TriRecord));
+      }
       if (node.has_box()) {
         // The leaf's LeafBox: a lane whose ray misses it cannot hit the leaf's triangles
         // there. The whole ray [t_min, t_max] is tested, not the segment in this leaf: the box
@@ -724,6 +733,7 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         if (none(inside)) goto pop;
         active = inside;
       }
+      if constexpr (kWalkStats && N == 1) stats.read(leaf, count * sizeof(TriRecord));
       if (intersect_leaf_by_lanes<N, kOcclusion, Test>(leaf, count, ray, active, hit, occluded)) {
         stats.tests(count, 1);  // one live lane, the leaf's triangles side by side
       } else {

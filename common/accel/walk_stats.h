@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -66,6 +67,27 @@ void reset_walk_stats();
 /// Adds one walk's counts to its totals (thread-safe). Called by the walks of a stats build only.
 void add_walk_stats(bool packet, bool occlusion, const WalkStats& s);
 
+/// The distinct 64-byte cache lines that walks read (or asked for ahead) from one tree's nodes
+/// and leaf slots (LeafBox and triangle records), over the walks since track_walk_footprint:
+/// the tree's working set for those rays, which decides how much of it an L2 holds. Stats
+/// builds only; walks over other trees are not counted.
+struct WalkFootprint {
+  std::uint64_t node_lines = 0;
+  std::uint64_t record_lines = 0;
+  [[nodiscard]] double node_mb() const { return static_cast<double>(node_lines) * 64.0 / 1e6; }
+  [[nodiscard]] double record_mb() const { return static_cast<double>(record_lines) * 64.0 / 1e6; }
+};
+/// Starts counting the lines read from [nodes, nodes + node_bytes) and [records, records +
+/// record_bytes) (one tree's arrays), with none counted yet. Call it with no walk running.
+void track_walk_footprint(const void* nodes, std::size_t node_bytes, const void* records, std::size_t record_bytes);
+/// The lines counted since track_walk_footprint (zeros when not tracking).
+[[nodiscard]] WalkFootprint walk_footprint();
+/// Stops counting and frees the line marks. Call it with no walk running.
+void stop_walk_footprint();
+/// Marks the lines of [p, p + bytes) where they lie in a tracked array (thread-safe). Called by
+/// the walks of a stats build only.
+void mark_walk_lines(const void* p, std::size_t bytes);
+
 /// One walk's counts, added to the totals when it goes out of scope. Where kWalkStats is false
 /// every member function is empty and the object holds nothing, so the walk compiles as if it
 /// were not there.
@@ -78,6 +100,7 @@ struct WalkCounter {
   void leaf(std::uint32_t) {}
   void tests(std::uint32_t, std::uint32_t) {}
   void box(std::uint32_t, std::uint32_t) {}
+  void read(const void*, std::size_t) {}
 };
 
 template <>
@@ -107,6 +130,8 @@ struct WalkCounter<true> {
     s_.box_lanes += lanes;
     s_.box_kept += kept;
   }
+  // `bytes` read (or asked for ahead) at p: counted in the footprint where it is tracked.
+  void read(const void* p, std::size_t bytes) { mark_walk_lines(p, bytes); }
 
  private:
   WalkStats s_;

@@ -9,7 +9,9 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -76,12 +78,47 @@ struct RayStream {
   std::uint64_t real = 0;
 };
 
-RayStream primary_stream(const rtc::FrameState& fs, int width) {
+// --tiles FROM:TO: the share of the image's 16x16 tiles (in rows, top to bottom) that the primary
+// and shadow modes trace, on every side alike: tiles [floor(FROM n), floor(TO n)) of n.
+struct TileShare {
+  double from = 0.0, to = 1.0;
+  [[nodiscard]] bool whole() const { return from == 0.0 && to == 1.0; }
+  [[nodiscard]] std::pair<std::size_t, std::size_t> range(std::size_t n) const {
+    return {static_cast<std::size_t>(std::floor(from * static_cast<double>(n))),
+            static_cast<std::size_t>(std::floor(to * static_cast<double>(n)))};
+  }
+};
+
+// "FROM:TO" with 0 <= FROM < TO <= 1 (fractions of the tiles); throws rtc::Error otherwise.
+TileShare parse_tile_share(const std::string& text) {
+  const std::size_t colon = text.find(':');
+  TileShare t;
+  std::size_t used_from = 0, used_to = 0;
+  try {
+    if (colon == std::string::npos) throw std::invalid_argument("no colon");
+    t.from = std::stod(text.substr(0, colon), &used_from);
+    t.to = std::stod(text.substr(colon + 1), &used_to);
+  } catch (const std::exception&) {
+    throw rtc::Error("--tiles '" + text + "': expected FROM:TO, two fractions of the image's tiles (e.g. 0.125:0.25)");
+  }
+  if (used_from != colon || used_to != text.size() - colon - 1 || !(t.from >= 0.0) || !(t.to <= 1.0) ||
+      !(t.from < t.to)) {
+    throw rtc::Error("--tiles '" + text + "': expected FROM:TO with 0 <= FROM < TO <= 1");
+  }
+  return t;
+}
+
+RayStream primary_stream(const rtc::FrameState& fs, int width, const TileShare& share) {
   RayStream s;
   s.width = width;
   const int bw = rtc::packet_block_width(width), bh = width / bw;
+  const std::size_t tiles = static_cast<std::size_t>((fs.width + kTile - 1) / kTile) *
+                            static_cast<std::size_t>((fs.height + kTile - 1) / kTile);
+  const auto [first_tile, end_tile] = share.range(tiles);
+  std::size_t tile = 0;
   for (int ty = 0; ty < fs.height; ty += kTile) {
-    for (int tx = 0; tx < fs.width; tx += kTile) {
+    for (int tx = 0; tx < fs.width; tx += kTile, ++tile) {
+      if (tile < first_tile || tile >= end_tile) continue;
       s.chunk_begin.push_back(s.rays.size());
       for (int by = ty; by < std::min(ty + kTile, fs.height); by += bh) {
         for (int bx = tx; bx < std::min(tx + kTile, fs.width); bx += bw) {
@@ -296,6 +333,10 @@ int run(int argc, char** argv) {
                  "a view.json / scene file / mesh, or a folder holding view.json; omitted: the built-in default scene");
   app.add_option("--threads", threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--reps", reps, "repetitions; figures are medians")->check(CLI::Range(1, 1000));
+  std::string tiles_text;
+  app.add_option("--tiles", tiles_text,
+                 "primary and shadow modes: trace only this share of the image's 16x16 tiles, FROM:TO as fractions "
+                 "of them in rows from the top (e.g. 0.125:0.25), on every side alike (default 0:1, all)");
   int build_reps = 0;
   app.add_option("--build-reps", build_reps,
                  "builds timed (default: --reps, and more, up to 100, until rtc's builds add up to half a second); "
@@ -423,6 +464,13 @@ int run(int argc, char** argv) {
       ab_shadow_order_text.empty() ? std::nullopt : std::optional(rtc::parse_shadow_order(ab_shadow_order_text));
   rtc::init_logging(log_level);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
+  const TileShare tile_share = tiles_text.empty() ? TileShare{} : parse_tile_share(tiles_text);
+  if (!tile_share.whole() &&
+      std::any_of(modes.begin(), modes.end(), [](const std::string& m) { return m != "primary" && m != "shadow"; })) {
+    throw rtc::Error("--tiles applies to the primary and shadow modes (the full mode renders whole frames): give "
+                     "--mode primary and/or --mode shadow");
+  }
+  if (!tile_share.whole() && !dump_prefix.empty()) throw rtc::Error("--dump writes whole images: leave out --tiles");
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =
@@ -579,6 +627,7 @@ int run(int argc, char** argv) {
                          {"kd_leaf_boxes", kd.leaf_boxes},
                          {"kd_forks", kd.forks},
                          {"reps", reps}};
+  base["tiles"] = {tile_share.from, tile_share.to};
   if (compare) {
     base["embree_build_ms"] = embree_build_ms;
     base["embree_build_hq_ms"] = embree_build_hq_ms;
@@ -590,6 +639,10 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(kd.triangles), fs->width, fs->height, thread_count,
                 std::string(rtc::isa_name(isa)).c_str(), rtc::intersector_name(scene.settings.intersector), load_ms);
     std::printf("  build: rtc kd-tree %.1f ms (%s)\n", build_ms, kd.to_string().c_str());
+    if (!tile_share.whole()) {
+      std::printf("  tiles: %g to %g of the image's 16x16 tiles (in rows from the top), on every side\n",
+                  tile_share.from, tile_share.to);
+    }
     if (compare) {
       std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality); rtc / high quality %.2fx "
                   "(paired by round)\n",
@@ -598,11 +651,16 @@ int run(int argc, char** argv) {
   }
 
   // Primary rays are needed by the shadow mode too.
-  const RayStream primary = primary_stream(*fs, kernels.packet_width);
+  const RayStream primary = primary_stream(*fs, kernels.packet_width, tile_share);
   std::vector<RayHit> hits;
   std::vector<std::uint8_t> unused_occ;
   trace_stream(kernels, *fs, primary, false, true, hits, unused_occ, true);
   const std::vector<RayHit> our_pixels = by_pixel(primary, hits, pixels);
+  std::vector<std::size_t> traced;  // the pixels of the tiles traced, in order
+  for (const std::int64_t px : primary.pixel) {
+    if (px >= 0) traced.push_back(static_cast<std::size_t>(px));
+  }
+  std::sort(traced.begin(), traced.end());
   if (!dump_prefix.empty()) write_dump(dump_prefix, *fs, our_pixels);
 
   for (const std::string& mode : modes) {
@@ -637,7 +695,7 @@ int run(int argc, char** argv) {
         auto o = std::make_unique<OtherIsa>();
         o->isa = other;
         o->kernels = &rtc::trace_kernels(other);
-        const RayStream p2 = primary_stream(*fs, o->kernels->packet_width);
+        const RayStream p2 = primary_stream(*fs, o->kernels->packet_width, tile_share);
         trace_stream(*o->kernels, *fs, p2, false, true, o->hits, o->occ, true);
         o->stream = shadow ? shadow_stream(*fs, p2, o->hits) : p2;
         others.push_back(std::move(o));
@@ -654,7 +712,7 @@ int run(int argc, char** argv) {
       if (compare) {
         for (EmbreeMode em : kEmbreeModes) {
           if (!embree->supports(em)) continue;
-          EmbreeRun e{em, shadow ? shadows : primary_stream(*fs, static_cast<int>(em)), {}, {}};
+          EmbreeRun e{em, shadow ? shadows : primary_stream(*fs, static_cast<int>(em), tile_share), {}, {}};
           e.stream.width = static_cast<int>(em);
           e.hits.resize(e.stream.rays.size());
           e.occ.resize(e.stream.rays.size());
@@ -805,15 +863,31 @@ int run(int argc, char** argv) {
       }
 
       if constexpr (rtc::kWalkStats) {
-        // Stats builds: the walks' counts over `reps` passes of each kernel, outside the timing.
+        // Stats builds: the walks' counts over `reps` passes of each kernel, outside the timing,
+        // and the distinct lines of the tree that one pass of each reads (its footprint).
+        const rtc::KdTree& tree = fs->geometry->single_tree();
+        const auto track = [&] {
+          rtc::track_walk_footprint(tree.nodes().data(), tree.nodes().size_bytes(), tree.leaf_records().data(),
+                                    tree.leaf_records().size_bytes());
+        };
         rtc::reset_walk_stats();
+        track();
         for (int r = 0; r < reps; ++r) ours(true, false);
+        const rtc::WalkFootprint packet_footprint = rtc::walk_footprint();
         // A packet pass walks packets and, for octant groups of one lane, single rays.
         const rtc::WalkStats packet_walks = rtc::walk_stats(true, shadow);
         const rtc::WalkStats lone_walks = rtc::walk_stats(false, shadow);
         rtc::reset_walk_stats();
+        track();
         for (int r = 0; r < reps; ++r) ours(false, false);
+        const rtc::WalkFootprint single_footprint = rtc::walk_footprint();
+        rtc::stop_walk_footprint();
         const rtc::WalkStats single_walks = rtc::walk_stats(false, shadow);
+        const auto footprint_json = [](const rtc::WalkFootprint& f) {
+          return nlohmann::json{{"node_lines", f.node_lines}, {"record_lines", f.record_lines}};
+        };
+        out["footprint_packets"] = footprint_json(packet_footprint);
+        out["footprint_single"] = footprint_json(single_footprint);
         out["walks_packets"] = walk_json(packet_walks);
         out["walks_packet_lone_lanes"] = walk_json(lone_walks);
         out["walks_single"] = walk_json(single_walks);
@@ -822,6 +896,10 @@ int run(int argc, char** argv) {
                       packet_walks.to_string().c_str());
           std::printf("          lone lanes of those: %s\n          single rays: %s\n", lone_walks.to_string().c_str(),
                       single_walks.to_string().c_str());
+          std::printf("          footprint (distinct lines of the tree read): packets %.2f MB of nodes, %.2f MB of "
+                      "leaf slots; single rays %.2f MB, %.2f MB\n",
+                      packet_footprint.node_mb(), packet_footprint.record_mb(), single_footprint.node_mb(),
+                      single_footprint.record_mb());
         }
       }
       const double rays = static_cast<double>(s.real);
@@ -902,10 +980,24 @@ int run(int argc, char** argv) {
             }
             m["occlusion_agreement"] = n_real ? static_cast<double>(agree) / static_cast<double>(n_real) : 1.0;
           } else {
-            const std::vector<RayHit> theirs = by_pixel(es, e.hits, pixels);
-            const std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
+            std::vector<RayHit> theirs = by_pixel(es, e.hits, pixels);
+            std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
+            std::vector<RayHit> ours_traced = our_pixels;
+            if (!tile_share.whole()) {
+              // Only the pixels of the tiles traced (the others hold no ray on either side).
+              std::size_t n = 0;
+              for (const std::size_t px : traced) {
+                pr[n] = pr[px];
+                ours_traced[n] = ours_traced[px];
+                theirs[n] = theirs[px];
+                ++n;
+              }
+              pr.resize(n);
+              ours_traced.resize(n);
+              theirs.resize(n);
+            }
             const rtc::test::HitComparison c =
-                rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, our_pixels, theirs);
+                rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, ours_traced, theirs);
             m["hit_miss_agreement"] = c.hit_miss_agreement();
             m["same_triangle"] = c.same_prim;
             m["max_rel_dt"] = c.max_rel_t_same_prim;

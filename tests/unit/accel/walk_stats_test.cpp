@@ -2,6 +2,7 @@
 // and in a stats build (the stats preset) counts that follow from the tree and the rays.
 #include <gtest/gtest.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -148,6 +149,80 @@ TEST(WalkStats, OneLeafTreeHasNoInnerSteps) {
   EXPECT_EQ(s.leaves, 10u);
   EXPECT_EQ(s.empty_leaves, 0u);
   EXPECT_EQ(s.tests, 10u);
+}
+
+// The lines [p, p + bytes) spans.
+std::uint64_t lines_spanned(const void* p, std::size_t bytes) {
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  return bytes == 0 ? 0 : (a + bytes - 1) / 64 - a / 64 + 1;
+}
+
+// The footprint: the distinct lines of a tracked tree's nodes and leaf slots that walks read.
+TEST(WalkStats, FootprintCountsTheLinesRead) {
+  const Grid g = grid(16);
+  const KdTree tree = KdTree::build(g.positions, g.triangles, KdBuildOptions{});
+  const auto track = [](const KdTree& t) {
+    track_walk_footprint(t.nodes().data(), t.nodes().size_bytes(), t.leaf_records().data(),
+                         t.leaf_records().size_bytes());
+  };
+  std::vector<RayHit> hits(g.rays.size());
+  const TraceKernels& k = trace_kernels();
+  track(tree);
+  k.intersect(tree, g.rays.data(), hits.data(), g.rays.size(), true);
+  const WalkFootprint packets = walk_footprint();
+  track(tree);
+  k.intersect(tree, g.rays.data(), hits.data(), g.rays.size(), false);
+  const WalkFootprint single = walk_footprint();
+  stop_walk_footprint();
+  const WalkFootprint stopped = walk_footprint();
+  EXPECT_EQ(stopped.node_lines, 0u);
+  EXPECT_EQ(stopped.record_lines, 0u);
+  if (!kWalkStats) {
+    // A default build's walks mark nothing.
+    EXPECT_EQ(packets.node_lines + packets.record_lines + single.node_lines + single.record_lines, 0u);
+    return;
+  }
+  const std::uint64_t node_lines = lines_spanned(tree.nodes().data(), tree.nodes().size_bytes());
+  const std::uint64_t record_lines = lines_spanned(tree.leaf_records().data(), tree.leaf_records().size_bytes());
+  for (const WalkFootprint& f : {packets, single}) {
+    // Within the arrays, and at least the lines of the 256 triangles hit (one per square).
+    EXPECT_LE(f.node_lines, node_lines);
+    // The 256 rays reach leaves all over the tree: more than the root's line of nodes.
+    ASSERT_GT(node_lines, 4u);
+    EXPECT_GT(f.node_lines, node_lines / 2) << "of " << node_lines;
+    EXPECT_LE(f.record_lines, record_lines);
+    EXPECT_GE(f.record_lines * 64, 256u * sizeof(TriRecord));
+  }
+  // Every ray meets the grid, so together they read every leaf with a triangle hit; the two
+  // kernels visit the same leaves.
+  EXPECT_EQ(single.record_lines, packets.record_lines);
+
+  // Rays that miss the tree's box read nothing; walks over a tree not tracked count nowhere.
+  std::vector<RayQuery> away = g.rays;
+  for (RayQuery& r : away) r.dir = glm::vec3(0.0f, 0.0f, 1.0f);
+  track(tree);
+  k.intersect(tree, away.data(), hits.data(), away.size(), false);
+  const KdTree other = KdTree::build(g.positions, g.triangles, KdBuildOptions{});
+  k.intersect(other, g.rays.data(), hits.data(), g.rays.size(), false);
+  const WalkFootprint none = walk_footprint();
+  EXPECT_EQ(none.node_lines, 0u);
+  EXPECT_EQ(none.record_lines, 0u);
+
+  // One leaf of one triangle: the root's line and the record's.
+  const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const std::vector<glm::uvec3> triangles = {{0, 1, 2}};
+  const KdTree leaf = KdTree::build(positions, triangles, KdBuildOptions{});
+  ASSERT_EQ(leaf.nodes().size(), 1u);
+  RayQuery r;
+  r.org = glm::vec3(0.2f, 0.2f, 1.0f);
+  r.dir = glm::vec3(0.0f, 0.0f, -1.0f);
+  r.t_max = 2.0f;
+  track(leaf);
+  k.intersect(leaf, &r, hits.data(), 1, false);
+  const WalkFootprint one = walk_footprint();
+  stop_walk_footprint();
+  EXPECT_EQ(one.node_lines, 1u);
+  EXPECT_EQ(one.record_lines, lines_spanned(leaf.leaf_records().data(), sizeof(TriRecord)));
 }
 
 }  // namespace
