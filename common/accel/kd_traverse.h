@@ -626,10 +626,11 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       node = ahead;
     } else {
       node = nodes[index];
+      if constexpr (kWalkStats) stats.read(&nodes[index], sizeof(KdNode));
     }
     if (!node.is_leaf()) {
       stats.inner();
-      if constexpr (kWalkStats) stats.read(&nodes[node.left()], 2 * sizeof(KdNode));  // the children (adjacent)
+      if constexpr (kWalkStats && kLoadAhead) stats.read(&nodes[node.left()], 2 * sizeof(KdNode));  // both children
       const int axis = node.axis();
       if constexpr (N > 1) t_split = plane_t(node);
       const std::uint32_t sign = (sign_bits >> axis) & 1u;

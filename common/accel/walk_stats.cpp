@@ -23,12 +23,14 @@ struct Tracked {
     begin = reinterpret_cast<std::uintptr_t>(p);
     end = begin + bytes;
     lines = bytes == 0 ? 0 : (end - 1) / 64 - begin / 64 + 1;
-    marks = lines == 0 ? nullptr : std::make_unique<std::atomic<std::uint8_t>[]>(lines);
-    for (std::size_t i = 0; i < lines; ++i) marks[i].store(0, std::memory_order_relaxed);
+    marks = lines == 0 ? nullptr : std::make_unique<std::atomic<std::uint8_t>[]>(lines);  // zeros
   }
   void mark(std::uintptr_t from, std::uintptr_t to) {  // [from, to) within [begin, end)
     for (std::uintptr_t line = from / 64; line <= (to - 1) / 64; ++line) {
-      marks[line - begin / 64].store(1, std::memory_order_relaxed);
+      std::atomic<std::uint8_t>& m = marks[line - begin / 64];
+      // Read first: a line marked already is not written again (both cores would otherwise
+      // keep taking the line of marks from each other).
+      if (m.load(std::memory_order_relaxed) == 0) m.store(1, std::memory_order_relaxed);
     }
   }
   [[nodiscard]] std::uint64_t count() const {

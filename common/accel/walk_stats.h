@@ -84,8 +84,9 @@ void track_walk_footprint(const void* nodes, std::size_t node_bytes, const void*
 [[nodiscard]] WalkFootprint walk_footprint();
 /// Stops counting and frees the line marks. Call it with no walk running.
 void stop_walk_footprint();
-/// Marks the lines of [p, p + bytes) where they lie in a tracked array (thread-safe). Called by
-/// the walks of a stats build only.
+/// Marks the lines of [p, p + bytes) when the whole range lies in one tracked array (thread-safe;
+/// a range outside them, or reaching past one's end, marks nothing). Called by the walks of a
+/// stats build only.
 void mark_walk_lines(const void* p, std::size_t bytes);
 
 /// One walk's counts, added to the totals when it goes out of scope. Where kWalkStats is false

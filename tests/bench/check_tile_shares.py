@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
-"""ctest check of rtc-bench --tiles (label integration), on the built-in scene: a share of the
-image's 16x16 tiles traced by every side alike.
+"""ctest check of rtc-bench --tiles (label integration), on the built-in scene at 200x100 (so
+that the right column and bottom row of tiles are partial): a share of the image's 16x16 tiles
+traced by every side alike.
   - the JSON line names the share, and its rays are exactly the pixels of those tiles (counted
-    here from the image's size); three shares that cover the image add up to all its pixels;
-  - the hits are compared with Embree's over those pixels only (the agreement line's ray count);
-  - shares that are not FROM:TO with 0 <= FROM < TO <= 1, and --tiles with the full mode or
-    --dump, are refused with a message naming --tiles (or --dump);
+    here from the image's size, tiles in rows); three shares that cover the image add up to all
+    its pixels;
+  - the hits and the occlusion are compared with Embree's over those pixels only (the agreement
+    line's ray count);
+  - shares that are not FROM:TO with 0 <= FROM < TO <= 1 or that hold no tile, and --tiles with
+    the full mode, --sweep or --dump, are refused with a message naming --tiles (or --dump);
   - summarize_tile_shares.py tabulates a share's figures and a stats build's footprint.
 
 usage: check_tile_shares.py RTC_BENCH
@@ -26,7 +29,7 @@ TILE = 16
 def share_pixels(width, height, start, end):
     tx, ty = math.ceil(width / TILE), math.ceil(height / TILE)
     n = tx * ty
-    first, last = math.floor(start * n), math.floor(end * n)
+    first, last = min(n, math.floor(start * n + 1e-9)), min(n, math.floor(end * n + 1e-9))
     total = 0
     for t in range(first, last):
         x0, y0 = (t % tx) * TILE, (t // tx) * TILE
@@ -35,13 +38,14 @@ def share_pixels(width, height, start, end):
 
 
 def main(bench):
-    common = ["--threads", "1", "--reps", "1", "--build-reps", "1"]
+    common = ["--threads", "1", "--reps", "1", "--build-reps", "1", "--width", "200", "--height", "100"]
     stdout, rows = bench_json(bench, common + ["--mode", "primary", "--mode", "shadow", "--compare-embree",
                                                "--tiles", "0.25:0.5"])
     check(sorted(r.get("mode") for r in rows) == ["primary", "shadow"], f"modes {[r.get('mode') for r in rows]}")
     primary = next((r for r in rows if r.get("mode") == "primary"), None)
     if primary is not None:
         width, height = primary["width"], primary["height"]
+        check((width, height) == (200, 100), f"image {width}x{height}")
         want = share_pixels(width, height, 0.25, 0.5)
         check(0 < want < width * height, f"the share holds {want} of {width * height} pixels")
         check(primary.get("tiles") == [0.25, 0.5], f"tiles {primary.get('tiles')}")
@@ -50,6 +54,11 @@ def main(bench):
             check(finite_positive(primary.get(key)), f"primary {key} = {primary.get(key)}")
         for name, m in primary.get("embree", {}).items():
             check(m.get("hit_miss_agreement", 0) > 0.999, f"primary {name}: agreement {m.get('hit_miss_agreement')}")
+        shadow = next((r for r in rows if r.get("mode") == "shadow"), {})
+        check(shadow.get("tiles") == [0.25, 0.5], f"shadow tiles {shadow.get('tiles')}")
+        check(len(shadow.get("embree", {})) > 0, "shadow: no Embree figures")
+        for name, m in shadow.get("embree", {}).items():
+            check(m.get("occlusion_agreement", 0) > 0.999, f"shadow {name}: agreement {m.get('occlusion_agreement')}")
         # Three shares covering the image: all its pixels, once.
         total = 0
         for share in ("0:0.3", "0.3:0.7", "0.7:1"):
@@ -91,6 +100,8 @@ def main(bench):
     for args, word in ((["--tiles", "0.5"], "--tiles"), (["--tiles", "0.5:0.25"], "--tiles"),
                        (["--tiles", "-0.1:0.5"], "--tiles"), (["--tiles", "0:1.5"], "--tiles"),
                        (["--tiles", "0.1:0.2x"], "--tiles"), (["--tiles", "0:0.5", "--mode", "full"], "--tiles"),
+                       (["--tiles", "0.5:0.5001", "--mode", "primary"], "--tiles"),
+                       (["--tiles", "0:0.5", "--mode", "primary", "--sweep", "/nonexistent/x"], "--tiles"),
                        (["--tiles", "0:0.5", "--mode", "primary", "--dump", "/nonexistent/x"], "--dump")):
         run = subprocess.run([bench, *common, *args], capture_output=True, text=True, timeout=120)
         check(run.returncode != 0 and word in run.stderr, f"{args}: exit {run.returncode}, stderr {run.stderr!r}")
