@@ -710,9 +710,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
       stats.leaf(count);
       if constexpr (N > 1) prefetch_leaf(leaf, count, node.has_box());
       if constexpr (kWalkStats) {
-        // Packets ask for all of the leaf's slots at once; a single ray reads its box first.
-        const std::uint32_t slots = N > 1 ? count + (node.has_box() ? 1u : 0u) : (node.has_box() ? 1u : 0u);
-        stats.read(leaf - (node.has_box() ? 1 : 0), slots * sizeof(TriRecord));
+        // Packets ask for all of the leaf's slots at once; a single ray reads its box first (its
+        // records below, where the box lets it through).
+        const std::uint32_t box_slots = node.has_box() ? 1u : 0u;
+        stats.read(leaf - box_slots, (box_slots + (N > 1 ? count : 0u)) * sizeof(TriRecord));
       }
       if (node.has_box()) {
         // The leaf's LeafBox: a lane whose ray misses it cannot hit the leaf's triangles

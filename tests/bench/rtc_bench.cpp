@@ -112,13 +112,26 @@ TileShare parse_tile_share(const std::string& text) {
   return t;
 }
 
+// The image's kTile x kTile tiles (those on the right and bottom edges may be partial).
+std::size_t tile_count(const rtc::FrameState& fs) {
+  return static_cast<std::size_t>((fs.width + kTile - 1) / kTile) *
+         static_cast<std::size_t>((fs.height + kTile - 1) / kTile);
+}
+
+// The elements of `by_pixel` (one per pixel) at `pixels`, in that order.
+template <typename T>
+std::vector<T> at_pixels(const std::vector<T>& by_pixel, const std::vector<std::size_t>& pixels) {
+  std::vector<T> out;
+  out.reserve(pixels.size());
+  for (const std::size_t px : pixels) out.push_back(by_pixel[px]);
+  return out;
+}
+
 RayStream primary_stream(const rtc::FrameState& fs, int width, const TileShare& share) {
   RayStream s;
   s.width = width;
   const int bw = rtc::packet_block_width(width), bh = width / bw;
-  const std::size_t tiles = static_cast<std::size_t>((fs.width + kTile - 1) / kTile) *
-                            static_cast<std::size_t>((fs.height + kTile - 1) / kTile);
-  const auto [first_tile, end_tile] = share.range(tiles);
+  const auto [first_tile, end_tile] = share.range(tile_count(fs));
   std::size_t tile = 0;
   for (int ty = 0; ty < fs.height; ty += kTile) {
     for (int tx = 0; tx < fs.width; tx += kTile, ++tile) {
@@ -667,9 +680,7 @@ int run(int argc, char** argv) {
   if (!tile_share.whole()) {
     if (primary.real == 0) {
       throw rtc::Error(fmt::format("--tiles {}:{} holds none of the image's {} tiles of 16x16 pixels", tile_share.from,
-                                   tile_share.to,
-                                   static_cast<std::size_t>((fs->width + kTile - 1) / kTile) *
-                                       static_cast<std::size_t>((fs->height + kTile - 1) / kTile)));
+                                   tile_share.to, tile_count(*fs)));
     }
     for (const std::int64_t px : primary.pixel) {
       if (px >= 0) traced.push_back(static_cast<std::size_t>(px));
@@ -995,24 +1006,14 @@ int run(int argc, char** argv) {
             }
             m["occlusion_agreement"] = n_real ? static_cast<double>(agree) / static_cast<double>(n_real) : 1.0;
           } else {
-            std::vector<RayHit> theirs = by_pixel(es, e.hits, pixels);
-            std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
-            std::vector<RayHit> ours_traced = our_pixels;
-            if (!tile_share.whole()) {
-              // Only the pixels of the tiles traced (the others hold no ray on either side).
-              std::size_t n = 0;
-              for (const std::size_t px : traced) {
-                pr[n] = pr[px];
-                ours_traced[n] = ours_traced[px];
-                theirs[n] = theirs[px];
-                ++n;
-              }
-              pr.resize(n);
-              ours_traced.resize(n);
-              theirs.resize(n);
-            }
+            const std::vector<RayHit> theirs = by_pixel(es, e.hits, pixels);
+            const std::vector<RayQuery> pr = rays_by_pixel(es, pixels);
+            // With --tiles, only the pixels of the tiles traced (the others hold no ray on either side).
             const rtc::test::HitComparison c =
-                rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, ours_traced, theirs);
+                tile_share.whole()
+                    ? rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, pr, our_pixels, theirs)
+                    : rtc::test::compare_hits(fs->geometry->positions, fs->geometry->triangles, at_pixels(pr, traced),
+                                              at_pixels(our_pixels, traced), at_pixels(theirs, traced));
             m["hit_miss_agreement"] = c.hit_miss_agreement();
             m["same_triangle"] = c.same_prim;
             m["max_rel_dt"] = c.max_rel_t_same_prim;
