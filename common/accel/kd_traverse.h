@@ -596,7 +596,9 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   // each node after its parent's decision: the forms that looked ahead measured 0.87-1.02x
   // there (trace_experiments.md, session 35).
   // N = 1: the origin and reciprocals by axis, index 3 (a leaf's low bits) reading zeros: a
-  // leaf's value is never used, so a child's is computed without a branch on its kind.
+  // leaf's value is never used, so a child's is computed without a branch on its kind. (A
+  // leaf's second word, its count, reads as a normal float thanks to KdNode::kLeafTag: as a
+  // denormal it cost a microcode assist per operation on some CPUs.)
   [[maybe_unused]] float org4[4] = {}, inv4[4] = {};
   if constexpr (N == 1) {
     for (int a = 0; a < 3; ++a) {
