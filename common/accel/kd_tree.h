@@ -16,6 +16,7 @@
 
 #include <glm/glm.hpp>
 
+#include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/math/aabb.h"
 
@@ -28,8 +29,9 @@ namespace rtc {
 /// denser()) is the one a ray crossing the node more likely stops in, by the build's estimate
 /// (KdBuildOptions::mark_denser), which the dense shadow order enters first. Leaf: bits =
 /// (offset into KdTree::prim_refs << 2) | 3, `count` the number of triangle references
-/// (tri_count()) with kLeafTag set, and kBoxed when the slot before the first holds the leaf's
-/// LeafBox (has_box()).
+/// (tri_count()) with kLeafTag set (in every leaf KdNode::leaf() makes; the default KdNode, an
+/// empty leaf, has 0), and kBoxed when the slot before the first holds the leaf's LeafBox
+/// (has_box()).
 struct KdNode {
   std::uint32_t bits = 3;
   union {
@@ -43,9 +45,10 @@ struct KdNode {
   static constexpr std::uint32_t kBoxed = 1u << 31;
   /// A bit set in every leaf's `count` that KdNode::leaf() makes, so that the word read as a
   /// float (`split`) is never a denormal: its exponent field is 0x80 or more (a normal number
-  /// of at least 2, or a NaN from 2^30 - 2^23 references on, past any real leaf). The
-  /// single-ray walk computes a plane distance from both children's second words before it
-  /// knows which is a leaf (kd_traverse.h); a leaf's bare count read as a float is a denormal,
+  /// of magnitude at least 2, negative with kBoxed; not finite from 2^30 - 2^23 references on,
+  /// past any real leaf). The single-ray walk computes a plane distance from both children's
+  /// second words before it knows which is a leaf (kd_traverse.h); a non-empty leaf's bare count
+  /// read as a float is a denormal,
   /// and on AMD's Zen 5 every operation on one took a microcode assist: with this bit, single
   /// rays 1.08-1.95x as fast on six large views (medians 1.59 closest hit, 1.56 occlusion) and
   /// 2.9x on spd-tree's ground; packets unchanged (trace_experiments.md, session 46).
@@ -65,6 +68,7 @@ struct KdNode {
   [[nodiscard]] static KdNode leaf(std::uint64_t offset, std::uint32_t count, bool boxed = false) {
     KdNode n;
     n.bits = (static_cast<std::uint32_t>(offset) << 2) | 3u;
+    RTC_DCHECK(count < kLeafTag, "KdNode::leaf: 2^30 references or more (the build keeps fewer triangles)");
     n.count = count | kLeafTag | (boxed ? kBoxed : 0u);
     return n;
   }

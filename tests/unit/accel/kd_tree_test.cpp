@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -1582,9 +1583,16 @@ TEST(KdNode, LeafCountReadsAsANormalFloat) {
       EXPECT_EQ(leaf.has_box(), boxed);
       EXPECT_EQ(leaf.is_empty_leaf(), count == 0);
       EXPECT_EQ(leaf.prim_offset(), 12345u);
-      // Normal below 2^30 - 2^23 references (the exponent field is then 0x80-0xFE); a NaN above.
-      EXPECT_EQ(std::fpclassify(leaf.split), count < (1u << 30) - (1u << 23) ? FP_NORMAL : FP_NAN)
-          << "count " << count << ", boxed " << boxed;
+      // Normal, of magnitude at least 2, below 2^30 - 2^23 references (the exponent field is
+      // then 0x80-0xFE); not finite from there on.
+      const float word = std::bit_cast<float>(leaf.count);
+      EXPECT_NE(std::fpclassify(word), FP_SUBNORMAL) << "count " << count << ", boxed " << boxed;
+      if (count < (1u << 30) - (1u << 23)) {
+        EXPECT_EQ(std::fpclassify(word), FP_NORMAL) << "count " << count << ", boxed " << boxed;
+        EXPECT_GE(std::fabs(word), 2.0f) << "count " << count << ", boxed " << boxed;
+      } else {
+        EXPECT_FALSE(std::isfinite(word)) << "count " << count << ", boxed " << boxed;
+      }
     }
   }
   EXPECT_TRUE(KdNode{}.is_empty_leaf());  // the default node: an empty leaf, its word 0.0f
