@@ -48,10 +48,10 @@ struct KdNode {
   /// of magnitude at least 2, negative with kBoxed; not finite from 2^30 - 2^23 references on,
   /// past any real leaf). The single-ray walk computes a plane distance from both children's
   /// second words before it knows which is a leaf (kd_traverse.h); a non-empty leaf's bare count
-  /// read as a float is a denormal,
-  /// and on AMD's Zen 5 every operation on one took a microcode assist: with this bit, single
-  /// rays 1.08-1.95x as fast on six large views (medians 1.59 closest hit, 1.56 occlusion) and
-  /// 2.9x on spd-tree's ground; packets unchanged (trace_experiments.md, session 46).
+  /// read as a float is a denormal, and on AMD's Zen 5 every operation on one took a microcode
+  /// assist: with this bit, single rays 1.08-1.95x as fast on six large views (medians 1.59
+  /// closest hit, 1.56 occlusion) and 2.9x on spd-tree's ground; packets unchanged
+  /// (trace_experiments.md, session 46).
   static constexpr std::uint32_t kLeafTag = 1u << 30;
 
   /// An inner node over children left and left + 1, marking those that are empty leaves.
