@@ -17,6 +17,7 @@
 #include "common/base/frame_range.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
+#include "common/base/process_memory.h"
 #include "common/base/progress.h"
 #include "common/base/timer.h"
 #include "common/image/image.h"
@@ -28,6 +29,9 @@
 #include "common/scene/scene_cli.h"
 
 namespace {
+
+rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
+
 
 int run(int argc, char** argv) {
   CLI::App app{"rtc-render: render frames of a scene to image files (EXR, PNG) on this machine"};
@@ -65,6 +69,8 @@ int run(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   rtc::init_logging(log_level);
+
+  rtc::log_freed_memory_policy(freed_memory);
   // Options are checked before the (possibly long) scene load.
   std::optional<rtc::Isa> isa;
   if (!isa_text.empty()) {
@@ -189,6 +195,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const rtc::Error& e) {

@@ -8,11 +8,15 @@
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
+#include "common/base/process_memory.h"
 #include "common/scene/scene_cli.h"
 #include "protocol/auth.h"
 #include "worker/worker_client.h"
 
 namespace {
+
+rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
+
 
 int run(int argc, char** argv) {
   CLI::App app{"rtc-worker: render tiles for an rtc-master"};
@@ -35,6 +39,7 @@ int run(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
+  rtc::log_freed_memory_policy(freed_memory);
   if (!isa_text.empty()) {
     try {
       o.isa = rtc::parse_isa(isa_text);
@@ -51,6 +56,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {

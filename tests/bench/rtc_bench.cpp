@@ -28,6 +28,7 @@
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
+#include "common/base/process_memory.h"
 #include "common/scene/scene_cli.h"
 #include "common/base/timer.h"
 #include "common/image/image.h"
@@ -43,6 +44,9 @@
 #include "tests/bench/sweep.h"
 
 namespace {
+
+rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
+
 
 // The CPU's model name as /proc/cpuinfo gives it (the tables name the machine they were taken
 // on: sessions ran on an AMD EPYC VM and on an Intel Xeon VM); "unknown" where it is not there.
@@ -480,6 +484,7 @@ int run(int argc, char** argv) {
   const std::optional<rtc::ShadowOrder> ab_shadow_order =
       ab_shadow_order_text.empty() ? std::nullopt : std::optional(rtc::parse_shadow_order(ab_shadow_order_text));
   rtc::init_logging(log_level);
+  rtc::log_freed_memory_policy(freed_memory);
   if (modes.empty()) modes = {"primary", "shadow", "full"};
   const TileShare tile_share = app.count("--tiles") == 0 ? TileShare{} : parse_tile_share(tiles_text);
   if (!tile_share.whole() && !sweep_dir.empty()) {
@@ -1255,6 +1260,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
