@@ -30,10 +30,9 @@
 
 namespace {
 
-rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
-
-
 int run(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  const rtc::FreedMemoryPolicy freed_memory = rtc::keep_freed_memory();
   CLI::App app{"rtc-render: render frames of a scene to image files (EXR, PNG) on this machine"};
   rtc::SceneCliOptions scene_options;
   std::string frames_text;
@@ -69,7 +68,6 @@ int run(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   rtc::init_logging(log_level);
-
   rtc::log_freed_memory_policy(freed_memory);
   // Options are checked before the (possibly long) scene load.
   std::optional<rtc::Isa> isa;
@@ -195,8 +193,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
-  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const rtc::Error& e) {

@@ -15,10 +15,9 @@
 
 namespace {
 
-rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
-
-
 int run(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  const rtc::FreedMemoryPolicy freed_memory = rtc::keep_freed_memory();
   CLI::App app{"rtc-worker: render tiles for an rtc-master"};
   rtc::WorkerOptions o;
   std::string token_file, isa_text, log_level = "info", kd_clip = "auto";
@@ -56,8 +55,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
-  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {

@@ -10,6 +10,15 @@
 #include <malloc.h>
 #endif
 
+// A sanitizer replaces malloc: its mallopt does nothing (ASan's returns 0).
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define RTC_SANITIZER_MALLOC 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define RTC_SANITIZER_MALLOC 1
+#endif
+#endif
+
 namespace rtc {
 
 namespace {
@@ -35,26 +44,28 @@ std::string freed_memory_veto(const char* (*env)(const char* name)) {
 
 FreedMemoryPolicy keep_freed_memory() {
   FreedMemoryPolicy policy;
+#if defined(RTC_SANITIZER_MALLOC)
+  policy.reason = "a sanitizer's allocator";
+#elif !defined(__GLIBC__)
+  policy.reason = "not glibc";
+#else
   policy.reason = freed_memory_veto(&std_getenv);
   if (!policy.reason.empty()) return policy;
-#if defined(__GLIBC__)
-  // 32 MiB: glibc's DEFAULT_MMAP_THRESHOLD_MAX on 64-bit, the largest it accepts. Larger blocks
-  // (a big tree's arrays) are mmapped as before; the kd-tree build keeps those itself
-  // (alloc_pages' page cache).
+  // 32 MiB: glibc's DEFAULT_MMAP_THRESHOLD_MAX on 64-bit, the largest it accepts.
   constexpr int kMmapThreshold = 32 << 20;
-  const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, kMmapThreshold) == 1;
-  const bool trim_ok = mallopt(M_TRIM_THRESHOLD, 0x7FFFFFFF) == 1;  // int's largest, 2 GiB
-  policy.applied = mmap_ok && trim_ok;
-  if (!policy.applied) policy.reason = "mallopt refused the thresholds";
-#else
-  policy.reason = "not glibc";
+  policy.mmap_threshold_set = mallopt(M_MMAP_THRESHOLD, kMmapThreshold) == 1;
+  policy.trim_threshold_set = mallopt(M_TRIM_THRESHOLD, 0x7FFFFFFF) == 1;  // int's largest, 2 GiB
+  if (!policy.mmap_threshold_set) policy.reason += "mallopt refused M_MMAP_THRESHOLD 32 MiB; ";
+  if (!policy.trim_threshold_set) policy.reason += "mallopt refused M_TRIM_THRESHOLD 2 GiB; ";
 #endif
   return policy;
 }
 
 void log_freed_memory_policy(const FreedMemoryPolicy& policy) {
-  if (policy.applied) {
+  if (policy.applied()) {
     spdlog::debug("malloc keeps freed memory for reuse (M_MMAP_THRESHOLD 32 MiB, M_TRIM_THRESHOLD 2 GiB)");
+  } else if (policy.mmap_threshold_set || policy.trim_threshold_set) {
+    spdlog::debug("malloc keeps freed memory in part: {}", policy.reason);
   } else {
     spdlog::debug("malloc's thresholds left as they are: {}", policy.reason);
   }

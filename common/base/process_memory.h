@@ -1,5 +1,5 @@
 // How an rtc process asks glibc's malloc to keep the memory it frees, so that the next frame's
-// build (or the next rep of a benchmark) does not fault its pages in again.
+// kd-tree build (or a benchmark's next rep) does not fault its pages in again.
 #pragma once
 
 #include <string>
@@ -8,29 +8,37 @@ namespace rtc {
 
 /// What keep_freed_memory did.
 struct FreedMemoryPolicy {
-  bool applied = false;  ///< the thresholds below were set
-  std::string reason;    ///< why not, when not applied (for the debug log)
+  bool mmap_threshold_set = false;  ///< M_MMAP_THRESHOLD is 32 MiB
+  bool trim_threshold_set = false;  ///< M_TRIM_THRESHOLD is 2 GiB
+  std::string reason;               ///< why neither was set, or why one was refused
+  [[nodiscard]] bool applied() const { return mmap_threshold_set && trim_threshold_set; }
 };
 
 /// Asks glibc's malloc to keep freed memory for reuse instead of giving it back to the kernel:
 /// blocks up to 32 MiB come from the heap (mallopt M_MMAP_THRESHOLD, glibc's largest; a fixed
-/// value also stops glibc from moving the threshold as blocks are freed), and the heap's free
-/// top is not trimmed below 2 GiB (M_TRIM_THRESHOLD). Without it every kd-tree build gives its scratch
-/// arrays back and the next one faults them in again page by page: on a VM where a 4 KiB fault
-/// costs ~15 us that was a fifth of a 2-thread build of spd-tree (build_experiments.md,
-/// session 47). The price: a process keeps its peak heap (a worker's largest build) until it
-/// ends, and reuses it for every later frame.
+/// value also stops glibc from raising the threshold as blocks are freed, which sent the next
+/// block of that size to fresh heap pages), and a heap's free top goes back to the kernel only
+/// once it passes 2 GiB (M_TRIM_THRESHOLD). Without it a kd-tree build gave much of its scratch
+/// back and the next build faulted it in again page by page: on a VM where a 4 KiB page's
+/// first touch costs ~15 us, 0.82-0.92x the time for repeated builds at 2 threads
+/// (build_experiments.md, session 47; on the Xeon VM of session 38, where faults were cheap, 0.97-1.02x).
 ///
-/// Call once, first thing in main, before other threads start. Does nothing where the user set
-/// either threshold (MALLOC_TRIM_THRESHOLD_, MALLOC_MMAP_THRESHOLD_, or a glibc.malloc tunable
-/// for them in GLIBC_TUNABLES), or RTC_MALLOC_KEEP=0, or on a C library other than glibc.
+/// Not kept: blocks over 32 MiB (mmapped and unmapped as before; the kd-tree build keeps its own
+/// of 2 MiB and more, alloc_pages), and a thread arena's extra 64 MiB heaps once wholly free.
+/// The price: a process holds on to about its largest heap (a worker's largest build) per
+/// malloc arena until it ends, and reuses it for later frames.
+///
+/// Call once, first thing (before any thread starts). Sets nothing where the user set either
+/// threshold (MALLOC_TRIM_THRESHOLD_, MALLOC_MMAP_THRESHOLD_, or glibc.malloc.trim_threshold /
+/// mmap_threshold in GLIBC_TUNABLES), with RTC_MALLOC_KEEP=0, under a sanitizer's allocator, or
+/// on a C library other than glibc.
 FreedMemoryPolicy keep_freed_memory();
 
 /// Says at debug level what keep_freed_memory did (call after init_logging).
 void log_freed_memory_policy(const FreedMemoryPolicy& policy);
 
-/// keep_freed_memory's decision from the environment alone: the reason not to set the
-/// thresholds, or an empty string to set them. `env` looks a variable up (getenv's contract).
+/// keep_freed_memory's decision from the environment: the reason not to set the thresholds,
+/// or an empty string to set them. `env` looks a variable up (getenv's contract).
 std::string freed_memory_veto(const char* (*env)(const char* name));
 
 }  // namespace rtc

@@ -45,9 +45,6 @@
 
 namespace {
 
-rtc::FreedMemoryPolicy freed_memory;  // main's keep_freed_memory(), logged once logging is set up
-
-
 // The CPU's model name as /proc/cpuinfo gives it (the tables name the machine they were taken
 // on: sessions ran on an AMD EPYC VM and on an Intel Xeon VM); "unknown" where it is not there.
 std::string cpu_model() {
@@ -344,6 +341,8 @@ const EmbreeMode kEmbreeModes[] = {EmbreeMode::Single, EmbreeMode::Packet4, Embr
                                    EmbreeMode::Packet16};
 
 int run(int argc, char** argv) {
+  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
+  const rtc::FreedMemoryPolicy freed_memory = rtc::keep_freed_memory();
   CLI::App app{"rtc-bench: rtc tracer throughput on one scene, optionally beside Embree"};
   std::string scene_path;
   int threads = 0, reps = 5;
@@ -1260,8 +1259,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
-  freed_memory = rtc::keep_freed_memory();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
