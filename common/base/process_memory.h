@@ -20,7 +20,7 @@ struct FreedMemoryPolicy {
 /// block of that size to fresh heap pages), and a heap's free top goes back to the kernel only
 /// once it passes 2 GiB (M_TRIM_THRESHOLD). Without it a kd-tree build gave much of its scratch
 /// back and the next build faulted it in again page by page: on a VM where a 4 KiB page's
-/// first touch costs ~15 us, 0.82-0.92x the time for repeated builds at 2 threads
+/// first touch costs ~15 us, 0.76-0.90x the time for repeated builds at 2 threads
 /// (build_experiments.md, session 47; on the Xeon VM of session 38, where faults were cheap, 0.97-1.02x).
 ///
 /// Not kept: blocks over 32 MiB (mmapped and unmapped as before; the kd-tree build keeps its own
