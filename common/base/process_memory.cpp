@@ -21,12 +21,6 @@
 
 namespace rtc {
 
-namespace {
-
-const char* std_getenv(const char* name) { return std::getenv(name); }
-
-}  // namespace
-
 std::string freed_memory_veto(const char* (*env)(const char* name)) {
   const char* keep = env("RTC_MALLOC_KEEP");
   if (keep != nullptr && std::strcmp(keep, "0") == 0) return "RTC_MALLOC_KEEP=0";
@@ -49,7 +43,7 @@ FreedMemoryPolicy keep_freed_memory() {
 #elif !defined(__GLIBC__)
   policy.reason = "not glibc";
 #else
-  policy.reason = freed_memory_veto(&std_getenv);
+  policy.reason = freed_memory_veto([](const char* name) -> const char* { return std::getenv(name); });
   if (!policy.reason.empty()) return policy;
   // 32 MiB: glibc's DEFAULT_MMAP_THRESHOLD_MAX on 64-bit, the largest it accepts.
   constexpr int kMmapThreshold = 32 << 20;
