@@ -3456,6 +3456,12 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
     // Every byte of a record written (the array is not initialised): TriAccel's 48.
     static_assert(sizeof(TriAccel) == sizeof(TriRecord));
     if (!options.watertight) make_tri_accels(positions, triangles, begin, end - begin, &records[begin], isa);
+    // The chunk's box and count, and each triangle's box, in locals, each stored once: chunk_box
+    // and chunk_valid hold several chunks a cache line, and a store per triangle there bounced
+    // the line between two threads on neighbouring chunks (bunny at 2 threads: this loop took
+    // 0.08 ms on one thread, 0.16-0.35 ms on two).
+    Aabb chunk_bounds;
+    std::size_t valid = 0;
     for (std::size_t i = begin; i != end; ++i) {
       const std::uint32_t id = ids.empty() ? static_cast<std::uint32_t>(i) : ids[i];
       RTC_CHECK(id < 0x7FFFFFFFu, "kd-tree: triangle id must be below 2^31 - 1 (hits carry it as int32)");
@@ -3469,22 +3475,24 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
       } else {
         rec.wald.id = id;
       }
-      Aabb& box = tri_box[i];
-      box = Aabb{};  // empty for a degenerate triangle
+      Aabb box;  // empty for a degenerate triangle
       if (rec.wald.k < 3) {  // valid in either format (TriRecord)
         box.extend(a);
         box.extend(b);
         box.extend(c);
       }
+      tri_box[i] = box;
       if (options.mark_denser) {  // in double: a huge thin triangle's cross product overflows in float
         const glm::dvec3 da(a), db(b), dc(c);
         tri_area[i] = static_cast<float>(0.5 * glm::length(glm::cross(db - da, dc - da)));
       }
       if (!box.empty()) {  // as the tree's references are chosen below
-        chunk_box[chunk].extend(box);
-        ++chunk_valid[chunk];
+        chunk_bounds.extend(box);
+        ++valid;
       }
     }
+    chunk_box[chunk] = chunk_bounds;
+    chunk_valid[chunk] = valid;
   });
 
   Aabb root;
