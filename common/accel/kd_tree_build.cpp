@@ -3153,9 +3153,10 @@ void* map_huge(std::size_t bytes) {
   if (raw == MAP_FAILED) throw std::bad_alloc();
   const auto start = reinterpret_cast<std::uintptr_t>(raw);
   const std::uintptr_t aligned = (start + kHugePage - 1) & ~(std::uintptr_t{kHugePage} - 1);
+  // The head is under kHugePage, so the tail (kHugePage less the head) is never empty.
   const std::size_t head = aligned - start, tail = span - head - bytes;
   if (head > 0) ::munmap(raw, head);
-  if (tail > 0) ::munmap(reinterpret_cast<void*>(aligned + bytes), tail);
+  ::munmap(reinterpret_cast<void*>(aligned + bytes), tail);
   void* p = reinterpret_cast<void*>(aligned);
   ::madvise(p, bytes, MADV_HUGEPAGE);
   return p;
