@@ -262,6 +262,15 @@ struct KdBuildOptions {
   /// (16-wide packets 0.88-1.09x and 0.81-1.03x over ten small and medium views, spd-tetra-s8
   /// and spd-gears' shadow rays the worst; tests/bench/results/exact_below_1024_small.md).
   int exact_below = 4096;
+  /// The root is split with the binned SAH (as above exact_below) when it holds more than this
+  /// many references, so that a scene of one block (at most exact_below triangles) starts as
+  /// two blocks that build side by side: the exact sweep's set-up, root sweep and root split
+  /// ran before its first fork, mostly on one thread (bunny: 0.38 ms of a 1.8 ms build at 2
+  /// threads). The best bin of every axis within 1% of the best is refined to the exact plane
+  /// around it, and at the root every box lies in the node, so the plane is the exact sweep's
+  /// wherever it lies near such a bin: the same trees on bunny, Wuson, spd-teapot and
+  /// spd-tetra (unrefined, bunny's SAH cost rose 0.15%). At least exact_below: off.
+  int binned_root_above = 1024;
   int threads = 0;                 ///< 0: all cores (TBB's default)
   /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
   /// references are the same either way (the same triangles are left out as degenerate).
@@ -370,6 +379,9 @@ struct KdBuildStats {
   /// where threads were free (a small scene is one block of that stage); the tree is the same
   /// without.
   std::uint64_t forks = 0;
+  /// Subtrees built by the exact stage (KdBuildOptions::exact_below, binned_root_above): 1 for
+  /// a scene split by no binned node.
+  std::uint64_t blocks = 0;
   [[nodiscard]] std::string to_string() const;
 };
 

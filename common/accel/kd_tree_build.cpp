@@ -96,6 +96,7 @@ struct BuildContext {
   int max_depth = 0;
   int bins = 0;                 // binned SAH resolution per axis
   std::size_t exact_below = 0;  // nodes with at most this many references sweep exactly
+  std::size_t binned_root_above = 0;  // KdBuildOptions::binned_root_above, at most exact_below
   float sah_scale = 1.0f;       // see sah_scale_for()
   bool clip = true;             // KdBuildOptions::clip
   std::size_t mask_below = 0;   // KdBuildOptions::mask_below, at most kMaxMaskRefs
@@ -2643,7 +2644,8 @@ class TopBuilder {
     auto node = std::make_unique<TopNode>();
     const std::size_t n = tris.size();
     SplitChoice split;
-    if (n > ctx_.exact_below && depth < ctx_.max_depth && n > static_cast<std::size_t>(ctx_.options.leaf_size)) {
+    const std::size_t binned_above = depth == 0 ? ctx_.binned_root_above : ctx_.exact_below;
+    if (n > binned_above && depth < ctx_.max_depth && n > static_cast<std::size_t>(ctx_.options.leaf_size)) {
       split = binned_split(tris, box);
     }
     // A big node that no bin boundary pays to cut still gets the exact sweep's every plane.
@@ -2816,14 +2818,23 @@ class TopBuilder {
     for (int axis = 1; axis < 3; ++axis) {
       if (best[axis].cost < best[axis_best].cost) axis_best = axis;
     }
+    // A root binned only for binned_root_above (a scene of one block, whose tree is otherwise
+    // the exact sweep's) refines too, and so does every axis whose best bin costs within
+    // kRefineNear of the best one's: its plane is then the exact sweep's wherever that lies
+    // near such a bin (at the root every box lies in the node, so the binned counts are the
+    // sweep's), the earliest axis winning a tie as there.
+    const bool small_root = n <= ctx_.exact_below;
     for (int axis = 0; axis < 3; ++axis) {
-      if (axis != axis_best) best_bin[axis] = -1;
+      const bool near = small_root && best[axis].cost <= best[axis_best].cost * (1.0f + kRefineNear);
+      if (axis != axis_best && !near) best_bin[axis] = -1;
     }
-    if (n >= kRefineAbove) refine(tris, box, scale, b, best, best_bin);
+    if (n >= kRefineAbove || small_root) refine(tris, box, scale, b, best, best_bin);
     SplitChoice choice;
     for (const SplitChoice& s : best) {
       if (s.cost < choice.cost) choice = s;
     }
+    // The window's positions are taken as they are, -0 too; the exact sweep writes +0 (add_events).
+    if (small_root) choice.pos += 0.0f;
     return choice;
   }
 
@@ -2835,6 +2846,7 @@ class TopBuilder {
   // plane inside it. Refining every axis, or every binned node, gave the same spd-tree cost
   // and slower builds; near the root of spd-balls-s3 exact planes raise the SAH 10.2 -> 12.5.
   static constexpr int kRefineBins = 2;
+  static constexpr float kRefineNear = 0.01f;
   static constexpr std::size_t kRefineAbove = 65536;
 
   void refine(const std::vector<std::uint32_t>& tris, const Aabb& box, const float* scale, const Bins& b,
@@ -3075,6 +3087,7 @@ void add_stats(const TopNode& t, const Aabb& box, int depth, const KdBuildOption
     stats.leaves += t.block.leaves;
     stats.empty_leaves += t.block.empty_leaves;
     stats.forks += t.block.forks;
+    ++stats.blocks;
     stats.leaf_boxes += t.block.boxes.size();
     stats.max_depth = std::max(stats.max_depth, t.block.max_depth);
     cost_area += t.block.cost_area;
@@ -3524,8 +3537,11 @@ KdTree KdTree::build(std::span<const glm::vec3> positions, std::span<const glm::
   const std::size_t mask_below =
       static_cast<std::size_t>(std::clamp(options.effective_mask_below(), 0, static_cast<int>(kMaxMaskRefs)));
   const auto exact_below = static_cast<std::size_t>(std::max(options.exact_below, 1));
+  const std::size_t binned_root_above =
+      std::min(exact_below, static_cast<std::size_t>(std::max(options.binned_root_above, 1)));
   const std::size_t threads = build_threads();
-  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below, sah_scale_for(root),
+  BuildContext ctx{options,      tri_box,    positions, triangles, max_depth, kBins, exact_below,
+                   binned_root_above, sah_scale_for(root),
                    options.clip, mask_below, build_isa(options) == Isa::Avx512, build_isa(options) >= Isa::Avx2,
                    std::max(options.leaf_box_saving, 0.0f), threads > 1 ? count / 4 : SIZE_MAX, threads};
   const glm::vec3 eye = options.footprint_eye;

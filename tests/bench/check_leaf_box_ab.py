@@ -8,7 +8,8 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - summarize_leaf_box_ab.py tabulates the lines.
 Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once),
 --ab-kd-exact-below (the exact sweep below 4096 references against below 512, so more levels
-binned), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
+binned), --ab-kd-binned-root-above (the built-in scene as one block against its root binned: 1
+block against 2), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
 event sweep down to the leaves against bit masks below 128 references): the two trees' options
 are recorded, the trees differ, they give the same answers, the figures (both trees' SAH costs
 too) are finite and the summary tabulates them; and --ab-kd-max-depth (the default depth limit
@@ -86,6 +87,17 @@ def main(bench):
     # thresholds split differently (40,559 nodes against 41,939).
     run_ab(bench, 3, ["--kd-exact-below", "4096", "--ab-kd-exact-below", "512"], "nodes (4096 → 512)",
            other_tree("kd_exact_below", 4096, 512))
+    # With the exact sweep below 65,536 the built-in scene is one block unless its root is binned
+    # (--kd-binned-root-above 1024): one block against two, the options recorded.
+    def binned_root(r, ab, mode):
+        check(r.get("kd_binned_root_above") == 65536 and ab.get("kd_binned_root_above") == 1024,
+              f"{mode}: kd_binned_root_above {r.get('kd_binned_root_above')} and {ab.get('kd_binned_root_above')}")
+        check(r.get("kd_blocks") == 1 and ab.get("kd_blocks") == 2,
+              f"{mode}: {r.get('kd_blocks')} and {ab.get('kd_blocks')} blocks, expected 1 and 2")
+        check(finite_positive(r.get("kd_sah_cost")) and finite_positive(ab.get("kd_sah_cost")),
+              f"{mode}: SAH costs {r.get('kd_sah_cost')} and {ab.get('kd_sah_cost')}")
+    run_ab(bench, 3, ["--kd-exact-below", "65536", "--kd-binned-root-above", "65536", "--ab-kd-binned-root-above",
+                      "1024"], "nodes (65536 → 1024)", binned_root)
     run_ab(bench, 3, ["--kd-footprint", "0", "--ab-kd-footprint", "2"], "nodes (0 → 2)",
            other_tree("kd_footprint", 0, 2))
     run_ab(bench, 3, ["--kd-mask-below", "0", "--ab-kd-mask-below", "128"], "nodes (0 → 128)",

@@ -424,6 +424,14 @@ int run(int argc, char** argv) {
   int ab_exact_below = -1;
   app.add_option("--ab-kd-exact-below", ab_exact_below, ab_help("exact-below"))
       ->check(CLI::Range(1, 1 << 30));
+  app.add_option("--kd-binned-root-above", kd_options.binned_root_above,
+                 "the root is split with the binned SAH above this many references, so that a scene of one block "
+                 "(at most --kd-exact-below) builds as two side by side (at least --kd-exact-below: off)")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  int ab_binned_root_above = -1;
+  app.add_option("--ab-kd-binned-root-above", ab_binned_root_above, ab_help("binned-root-above"))
+      ->check(CLI::Range(1, 1 << 30));
   float ab_footprint = -1.0f;
   app.add_option("--ab-kd-footprint", ab_footprint, ab_help("footprint"))
       ->check(CLI::Range(0.0f, 1024.0f));
@@ -498,8 +506,8 @@ int run(int argc, char** argv) {
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =
-      ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_footprint >= 0.0f ||
-      ab_mask_below >= -1 || ab_max_depth >= 0;
+      ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_binned_root_above >= 0 ||
+      ab_footprint >= 0.0f || ab_mask_below >= -1 || ab_max_depth >= 0;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -604,6 +612,7 @@ int run(int argc, char** argv) {
   if (ab_leaf_box_saving >= 0.0f) ab_options.leaf_box_saving = ab_leaf_box_saving;
   if (ab_empty_cut >= 0.0f) ab_options.empty_cut = ab_empty_cut;
   if (ab_exact_below >= 0) ab_options.exact_below = ab_exact_below;
+  if (ab_binned_root_above >= 0) ab_options.binned_root_above = ab_binned_root_above;
   if (ab_footprint >= 0.0f) ab_options.footprint_pixels = ab_footprint;
   if (ab_mask_below >= -1) ab_options.mask_below = ab_mask_below;
   if (ab_max_depth >= 0) ab_options.max_depth = ab_max_depth;
@@ -647,6 +656,8 @@ int run(int argc, char** argv) {
                          {"kd_mask_below", kd_options.effective_mask_below()},
                          {"kd_empty_cut", kd_options.empty_cut},
                          {"kd_exact_below", kd_options.exact_below},
+                         {"kd_binned_root_above", kd_options.binned_root_above},
+                         {"kd_blocks", kd.blocks},
                          {"kd_leaf_box_saving", kd_options.leaf_box_saving},
                          {"kd_leaf_boxes", kd.leaf_boxes},
                          {"kd_forks", kd.forks},
@@ -863,6 +874,8 @@ int run(int argc, char** argv) {
         out["ab"] = {{"kd_leaf_box_saving", ab_options.leaf_box_saving},
                      {"kd_empty_cut", ab_options.empty_cut},
                      {"kd_exact_below", ab_options.exact_below},
+                     {"kd_binned_root_above", ab_options.binned_root_above},
+                     {"kd_blocks", kd_ab.blocks},
                      {"kd_footprint", ab_options.footprint_pixels},
                      {"kd_mask_below", ab_options.effective_mask_below()},
                      {"kd_max_depth_limit", ab_options.max_depth},
@@ -879,12 +892,13 @@ int run(int argc, char** argv) {
                      {"answers_differ", differ}};
         ab_differ = ab_differ || differ != 0;
         if (!json) {
-          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d --kd-footprint %g "
+          std::printf("  %-7s tree with --kd-leaf-box-saving %g --kd-empty-cut %g --kd-exact-below %d "
+                      "--kd-binned-root-above %d --kd-footprint %g "
                       "--kd-mask-below %d --kd-max-depth %d (%llu nodes, depth %d, %.2f triangles per non-empty "
                       "leaf): packets %.2f M rays/s (%.3fx the first tree's, paired), single rays %.2f "
                       "(%.3fx)%s\n",
                       mode.c_str(), static_cast<double>(ab_options.leaf_box_saving),
-                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below,
+                      static_cast<double>(ab_options.empty_cut), ab_options.exact_below, ab_options.binned_root_above,
                       static_cast<double>(ab_options.footprint_pixels), ab_options.effective_mask_below(),
                       ab_options.max_depth, static_cast<unsigned long long>(kd_ab.nodes), kd_ab.max_depth,
                       kd_ab.mean_tris_per_leaf, mrays,
@@ -1244,11 +1258,13 @@ int run(int argc, char** argv) {
   if (ab_differ) {
     std::fprintf(stderr,
                  "rtc-bench: error: with --kd-leaf-box-saving %g and %g, --kd-empty-cut %g and %g, --kd-exact-below "
-                 "%d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, --kd-max-depth %d and %d the "
-                 "answers differ (between the trees, or between packets and single rays)\n",
+                 "%d and %d, --kd-binned-root-above %d and %d, --kd-footprint %g and %g, --kd-mask-below %d and %d, "
+                 "--kd-max-depth %d and %d the answers differ (between the trees, or between packets and single "
+                 "rays)\n",
                  static_cast<double>(kd_options.leaf_box_saving), static_cast<double>(ab_options.leaf_box_saving),
                  static_cast<double>(kd_options.empty_cut), static_cast<double>(ab_options.empty_cut),
-                 kd_options.exact_below, ab_options.exact_below, static_cast<double>(kd_options.footprint_pixels),
+                 kd_options.exact_below, ab_options.exact_below, kd_options.binned_root_above,
+                 ab_options.binned_root_above, static_cast<double>(kd_options.footprint_pixels),
                  static_cast<double>(ab_options.footprint_pixels), kd_options.effective_mask_below(),
                  ab_options.effective_mask_below(), kd_options.max_depth, ab_options.max_depth);
   }

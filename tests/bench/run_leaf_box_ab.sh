@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Leaf boxes (KdBuildOptions::leaf_box_saving), or with AB_OPTION=kd-empty-cut the empty-gap cut
 # (KdBuildOptions::empty_cut), with AB_OPTION=kd-exact-below the size of the exact sweep's blocks
-# (KdBuildOptions::exact_below), with AB_OPTION=kd-footprint the pixels the view-aware SAH adds
+# (KdBuildOptions::exact_below), with AB_OPTION=kd-binned-root-above the size above which the root
+# is binned (KdBuildOptions::binned_root_above), with AB_OPTION=kd-footprint the pixels the view-aware SAH adds
 # to a small node's lengths (KdBuildOptions::footprint_pixels), with AB_OPTION=kd-mask-below
 # the size of the subtrees built with bit masks (KdBuildOptions::mask_below), or with
 # AB_OPTION=kd-max-depth the depth limit (KdBuildOptions::max_depth), at two values on
 # every view of the shared scene pack, in one process per view: rtc-bench builds a tree with
 # each value and times both trees' packets and single rays rep by rep (--ab-kd-leaf-box-saving /
-# --ab-kd-empty-cut / --ab-kd-exact-below / --ab-kd-footprint / --ab-kd-mask-below /
+# --ab-kd-empty-cut / --ab-kd-exact-below / --ab-kd-binned-root-above / --ab-kd-footprint / --ab-kd-mask-below /
 # --ab-kd-max-depth), so a slow
 # spell of the machine falls on both alike, and checks that both trees give the same answers.
 # Writes tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
@@ -15,8 +16,9 @@
 # first's, paired rep by rep).
 # Usage: tests/bench/run_leaf_box_ab.sh NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]
 #   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default); with
-#   AB_OPTION=kd-empty-cut, kd-exact-below, kd-footprint, kd-mask-below or kd-max-depth A and B
-#   are required (e.g. 2 0.2: off against the default; 4096 1024; 0 2; 64 128; 0 40)
+#   AB_OPTION=kd-empty-cut, kd-exact-below, kd-binned-root-above, kd-footprint, kd-mask-below or
+#   kd-max-depth A and B are required (e.g. 2 0.2: off against the default; 4096 1024; 4096 1024;
+#   0 2; 64 128; 0 40)
 # RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench); AB_ISA: the
 # kernel ISA (default: rtc-bench's, the widest the CPU runs).
 set -euo pipefail
@@ -29,11 +31,11 @@ reps=${4:-15}
 option=${AB_OPTION:-kd-leaf-box-saving}
 case "$option" in
   kd-leaf-box-saving) a=${5:-0} b=${6:-2} ;;
-  kd-empty-cut | kd-exact-below | kd-footprint | kd-mask-below | kd-max-depth)
+  kd-empty-cut | kd-exact-below | kd-binned-root-above | kd-footprint | kd-mask-below | kd-max-depth)
     [ $# -ge 6 ] || { echo "run_leaf_box_ab: AB_OPTION=$option needs A and B" >&2; exit 2; }
     a=$5 b=$6 ;;
-  *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving, kd-empty-cut, kd-exact-below, kd-footprint," \
-      "kd-mask-below or kd-max-depth, got $option" >&2
+  *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving, kd-empty-cut, kd-exact-below," \
+      "kd-binned-root-above, kd-footprint, kd-mask-below or kd-max-depth, got $option" >&2
     exit 2 ;;
 esac
 bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}
