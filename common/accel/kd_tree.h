@@ -261,15 +261,17 @@ struct KdBuildOptions {
   /// build the small scenes' trees from several blocks, but trace them slower on some views
   /// (16-wide packets 0.88-1.09x and 0.81-1.03x over ten small and medium views, spd-tetra-s8
   /// and spd-gears' shadow rays the worst; tests/bench/results/exact_below_1024_small.md).
+  /// A scene of at most this many triangles is one block unless binned_root_above bins its root.
   int exact_below = 4096;
   /// The root is split with the binned SAH (as above exact_below) when it holds more than this
   /// many references, so that a scene of one block (at most exact_below triangles) starts as
-  /// two blocks that build side by side: the exact sweep's set-up, root sweep and root split
-  /// ran before its first fork, mostly on one thread (bunny: 0.38 ms of a 1.8 ms build at 2
-  /// threads). The best bin of every axis within 1% of the best is refined to the exact plane
-  /// around it, and at the root every box lies in the node, so the plane is the exact sweep's
-  /// wherever it lies near such a bin: the same trees on bunny, Wuson, spd-teapot and
-  /// spd-tetra (unrefined, bunny's SAH cost rose 0.15%). At least exact_below: off.
+  /// two blocks that build side by side: the one block's set-up, root sweep and root split ran
+  /// before its first fork, mostly on one thread (bunny at 2 threads: 0.28 ms of a 1.8 ms
+  /// build, after the 0.09 ms record loop). The best bin of every axis within 1% of the best is
+  /// refined to the exact plane around it, and at the root every box lies in the node, so the
+  /// plane is the exact sweep's wherever it lies near such a bin: the same trees on bunny,
+  /// Wuson, spd-teapot and spd-tetra (unrefined, bunny's SAH cost rose 0.16%). At least
+  /// exact_below: off; below 1: 1.
   int binned_root_above = 1024;
   int threads = 0;                 ///< 0: all cores (TBB's default)
   /// Records for Woop's watertight test (TriVerts) instead of Wald's (TriAccel). The nodes and
@@ -376,11 +378,10 @@ struct KdBuildStats {
   double sah_cost = 0;            ///< expected cost of a random ray through the root
   std::uint64_t bytes = 0;        ///< what the tree holds: nodes, references and leaf records
   /// Nodes of the exact stage whose two children were built as tasks of their own, side by side
-  /// where threads were free (a small scene is one block of that stage); the tree is the same
-  /// without.
+  /// where threads were free; the tree is the same without.
   std::uint64_t forks = 0;
   /// Subtrees built by the exact stage (KdBuildOptions::exact_below, binned_root_above): 1 for
-  /// a scene split by no binned node.
+  /// a scene split by no binned node, 0 for an empty one.
   std::uint64_t blocks = 0;
   [[nodiscard]] std::string to_string() const;
 };

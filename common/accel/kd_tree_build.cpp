@@ -109,8 +109,9 @@ struct BuildContext {
   float leaf_box_saving = 0.0f;  // KdBuildOptions::leaf_box_saving (0: no LeafBox)
   // Blocks of more references than this (a quarter of the triangles, at 2 threads or more)
   // make their event lists and sweep their large nodes' three axes side by side
-  // (kSideBySideSetUp): a small scene is one block, and until its first fork the other
-  // threads have nothing to do.
+  // (kSideBySideSetUp): until such a block's first fork the other threads may have nothing to
+  // do (a scene of at most KdBuildOptions::binned_root_above triangles is one block; above it
+  // up to exact_below, two).
   std::size_t side_by_side_above = 0;
   std::size_t threads = 1;  // build_threads()
   // The view-aware SAH (KdBuildOptions::footprint_pixels): a pixel's width per unit of distance
@@ -1965,7 +1966,7 @@ class MaskBuilder {
   Block& out_;
 };
 
-// A block that is most of a small scene (BlockBuilder::side_by_side_) of at least this
+// A block that is a large part of a small scene (BlockBuilder::side_by_side_) of at least this
 // many references clips its triangles and makes its three event lists side by side, and its
 // nodes of at least this many sweep their three axes side by side: until its first fork the
 // other threads have nothing to do.
@@ -2667,7 +2668,7 @@ class TopBuilder {
     left_box.hi[split.axis] = split.pos;
     right_box.lo[split.axis] = split.pos;
     ctx_.work.fetch_add(1, std::memory_order_relaxed);  // two children in this node's place
-    if (n >= kParallelSubtree) {
+    if (n >= kParallelSubtree || n <= ctx_.exact_below) {
       tbb::parallel_invoke([&] { node->child[0] = build(std::move(left), left_box, depth + 1); },
                            [&] { node->child[1] = build(std::move(right), right_box, depth + 1); });
     } else {
@@ -2692,10 +2693,11 @@ class TopBuilder {
   static constexpr std::size_t kChunk = 16384;
   static constexpr std::size_t kParallelNode = 8192;
   static constexpr std::size_t kSmallChunk = 4096;
-  // Subtrees this big are built as tasks of their own.
-  // (Only the top nodes above KdBuildOptions::exact_below reach this test, so with the default
-  // 4096 every one of them is a task; lower values of exact_below make tasks of their children
-  // down to this size.)
+  // Subtrees this big are built as tasks of their own, and so are a small root's two halves
+  // (binned for KdBuildOptions::binned_root_above, whatever their size).
+  // (Only the top nodes above KdBuildOptions::exact_below, and such a root, reach this test, so
+  // with the default 4096 every one of them is a task; lower values of exact_below make tasks
+  // of their children down to this size.)
   static constexpr std::size_t kParallelSubtree = 1024;
 
   // The binning, refinement and partition loops read the boxes of a node's references,
@@ -2841,7 +2843,8 @@ class TopBuilder {
   // A bin boundary rarely falls on the plane that pays most: on spd-tree the root's binned
   // cut missed the tree's side, x = -1.38532, by 0.004 (SAH cost 10.1 at K_T = 2; 7.8 with
   // this refinement). Nodes of at least kRefineAbove references also sweep exactly the event
-  // positions in the kRefineBins bins on either side of the best boundary of the best axis.
+  // positions in the kRefineBins bins on either side of the best boundary of the best axis
+  // (and a small root, binned for binned_root_above, of every axis within kRefineNear of it).
   // Bin indices grow with position, so the counts binned below the window are exact for every
   // plane inside it. Refining every axis, or every binned node, gave the same spd-tree cost
   // and slower builds; near the root of spd-balls-s3 exact planes raise the SAH 10.2 -> 12.5.

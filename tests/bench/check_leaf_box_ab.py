@@ -8,11 +8,12 @@ triangles fill less than its cell, and asserts what must hold whatever the machi
   - summarize_leaf_box_ab.py tabulates the lines.
 Then the same for --ab-kd-empty-cut (every node swept against any empty gap cut at once),
 --ab-kd-exact-below (the exact sweep below 4096 references against below 512, so more levels
-binned), --ab-kd-binned-root-above (the built-in scene as one block against its root binned: 1
-block against 2), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
+binned), --ab-kd-footprint (the plain SAH against the view-aware one) and --ab-kd-mask-below (the
 event sweep down to the leaves against bit masks below 128 references): the two trees' options
 are recorded, the trees differ, they give the same answers, the figures (both trees' SAH costs
-too) are finite and the summary tabulates them; and --ab-kd-max-depth (the default depth limit
+too) are finite and the summary tabulates them; --ab-kd-binned-root-above (the built-in scene as
+one block against its root binned, with the exact sweep below 65,536: 1 block against 2, which
+may be the same tree, the same answers); and --ab-kd-max-depth (the default depth limit
 against 10). Last, --ab-shadow-order (far against dense: the same answers) and auto's tally in
 shadow mode (dense and far timed, near not; "none" with no lights).
 
