@@ -9,6 +9,10 @@
 #   e.g. cp build/release/tests/bench/rtc-bench /tmp/before; (change, rebuild);
 #        tests/bench/run_build_ab.sh /tmp/before build/release/tests/bench/rtc-bench 9 2 31 \
 #          ../shared/scenes/bunny/view.json ../shared/scenes/spd-teapot/view.json
+# BUILD_AB_EMBREE=1: each process builds as run_shared_scenes.sh's table does, taking turns with
+# Embree's two builds (--compare-embree --isa avx512 --reps 5, no --build-reps: builds until
+# rtc's add up to half a second, at most 100; BUILDS is then unused), so that each rtc build
+# starts with the caches Embree's builds left.
 set -euo pipefail
 [ $# -ge 6 ] || { echo "usage: $0 BIN_A BIN_B ROUNDS THREADS BUILDS VIEW..." >&2; exit 2; }
 bin_a=$1
@@ -24,7 +28,9 @@ for n in "$rounds" "$threads" "$builds"; do
   [[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "run_build_ab: '$n' is not a positive count" >&2; exit 2; }
 done
 build_ms() {
-  "$1" "$2" --threads "$threads" --reps 1 --build-reps "$builds" --mode primary --json |
+  local args=(--reps 1 --build-reps "$builds")
+  [ "${BUILD_AB_EMBREE:-0}" = 1 ] && args=(--reps 5 --compare-embree --isa avx512)
+  "$1" "$2" --threads "$threads" "${args[@]}" --mode primary --json |
     python3 -c "import json, sys; print(json.loads(sys.stdin.readline())['build_ms'])"
 }
 for view in "$@"; do
