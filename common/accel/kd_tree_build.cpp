@@ -672,6 +672,7 @@ struct Scratch {
     std::vector<std::uint64_t> planar[kMaskWords];  // ... that lie in it
     std::vector<std::uint64_t> owners[kMaskWords];  // ... with an event at it (only those planes are candidates)
     std::size_t size = 0;                           // planes before the padding
+    bool any_planar = false;                        // whether any plane has a planar reference
     // Room for `most` planes of W words and the padding; no planes yet.
     template <int W>
     void start(std::size_t most) {
@@ -683,6 +684,7 @@ struct Scratch {
         }
       }
       size = 0;
+      any_planar = false;
     }
     template <int W>
     void push(float p, const MaskBits<W>& b, const MaskBits<W>& a, const MaskBits<W>& pl, const MaskBits<W>& o) {
@@ -692,6 +694,7 @@ struct Scratch {
         above[w][size] = a.w[w];
         planar[w][size] = pl.w[w];
         owners[w][size] = o.w[w];
+        any_planar |= pl.w[w] != 0;
       }
       ++size;
     }
@@ -1070,6 +1073,25 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   return ev[first].pos;
 }
 
+// Of 16 lanes' cheapest planes (`cost`, and `at`, where each lies in the list), the lane of the
+// cheapest, and of equal ones the earliest, as a scan in list order taking only strictly cheaper
+// planes would pick; -1 where none costs less than `limit`. No lane's cost is NaN.
+[[gnu::target("avx512f")]] inline int cheapest_lane(__m512 cost, __m512i at, float limit) {
+  constexpr __mmask16 all = 0xFFFF;  // the zero-masking forms, as in simd.h (GCC 12)
+  __m512 c = _mm512_maskz_min_ps(all, cost, _mm512_maskz_shuffle_f32x4(all, cost, cost, _MM_SHUFFLE(1, 0, 3, 2)));
+  c = _mm512_maskz_min_ps(all, c, _mm512_maskz_shuffle_f32x4(all, c, c, _MM_SHUFFLE(2, 3, 0, 1)));
+  c = _mm512_maskz_min_ps(all, c, _mm512_maskz_permute_ps(all, c, _MM_SHUFFLE(1, 0, 3, 2)));
+  c = _mm512_maskz_min_ps(all, c, _mm512_maskz_permute_ps(all, c, _MM_SHUFFLE(2, 3, 0, 1)));  // all the cheapest
+  if (!(_mm512_cvtss_f32(c) < limit)) return -1;
+  const __mmask16 cheapest = _mm512_cmp_ps_mask(cost, c, _CMP_EQ_OQ);
+  __m512i a = _mm512_mask_blend_epi32(cheapest, _mm512_set1_epi32(std::numeric_limits<int>::max()), at);
+  a = _mm512_maskz_min_epi32(all, a, _mm512_maskz_shuffle_i32x4(all, a, a, _MM_SHUFFLE(1, 0, 3, 2)));
+  a = _mm512_maskz_min_epi32(all, a, _mm512_maskz_shuffle_i32x4(all, a, a, _MM_SHUFFLE(2, 3, 0, 1)));
+  a = _mm512_maskz_min_epi32(all, a, _mm512_maskz_shuffle_epi32(all, a, _MM_PERM_BADC));
+  a = _mm512_maskz_min_epi32(all, a, _mm512_maskz_shuffle_epi32(all, a, _MM_PERM_CDAB));  // all the earliest
+  return std::countr_zero(static_cast<unsigned>(cheapest & _mm512_cmpeq_epi32_mask(at, a)));
+}
+
 // SahAxis::cost for 16 candidate planes at once, its float operations in its order (so the
 // same bits): each plane's cost with its planar references on the left, (left_planar, right),
 // and on the right, (left, right_planar), and the cheaper where `has_planar` (ties to the left);
@@ -1095,14 +1117,7 @@ struct SahCosts16 {
 
   [[gnu::target("avx512f")]] __m512 cost(__m512 pos, __m512 left_planar, __m512 right, __m512 left,
                                          __m512 right_planar, __mmask16 has_planar, __mmask16& planar_left) const {
-    const __m512 area_left = _mm512_mul_ps(
-        two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(pos, lo), scale), cap,
-                                                                   grow),
-                                                perimeter)));
-    const __m512 area_right = _mm512_mul_ps(
-        two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(_mm512_sub_ps(hi, pos), scale), cap,
-                                                                   grow),
-                                                perimeter)));
+    const __m512 area_left = area(_mm512_sub_ps(pos, lo)), area_right = area(_mm512_sub_ps(hi, pos));
     const __m512 cost_left = with_bonus(area_left, area_right, left_planar, right);
     const __m512 cost_right =
         _mm512_mask_blend_ps(has_planar, cost_left, with_bonus(area_left, area_right, left, right_planar));
@@ -1110,7 +1125,19 @@ struct SahCosts16 {
     return _mm512_mask_blend_ps(planar_left, cost_right, cost_left);
   }
 
+  // cost() where no plane has planar references (most planes in most scenes): its cost_left,
+  // the same bits.
+  [[gnu::target("avx512f")]] __m512 cost_without_planar(__m512 pos, __m512 left, __m512 right) const {
+    return with_bonus(area(_mm512_sub_ps(pos, lo)), area(_mm512_sub_ps(hi, pos)), left, right);
+  }
+
  private:
+  // A half's area from its cut length (unscaled): 2 (cross + footprint_length(length) perimeter).
+  [[gnu::target("avx512f")]] __m512 area(__m512 length) const {
+    return _mm512_mul_ps(
+        two, _mm512_add_ps(cross, _mm512_mul_ps(footprint_length16(_mm512_mul_ps(length, scale), cap, grow), perimeter)));
+  }
+
   // k_t + k_i (area_left a + area_right b), times the empty-space bonus where a or b is 0.
   [[gnu::target("avx512f")]] __m512 with_bonus(__m512 area_left, __m512 area_right, __m512 a, __m512 b) const {
     const __m512 c =
@@ -1125,9 +1152,12 @@ struct SahCosts16 {
 // n_left will be) and the ends and planars up to it (what n_right loses); a running maximum
 // over the group starts carries each group's first count to its end, where its SAH costs are
 // SahAxis::cost()'s float operations in its order (separate multiplies and adds, as
-// -ffp-contract=off compiles the scalar code), so the same bits. The groups that beat the split
-// so far are then taken in order with the scalar comparison, so the same group wins ties. A
-// group may run on into the next 16. Lanes past the end are NaN, which equals nothing.
+// -ffp-contract=off compiles the scalar code), so the same bits. Where no group ending in the 16
+// holds a planar event (most of them in most scenes) only one cost is computed, the same as
+// either. Each lane keeps the cheapest group that ended in it, the earliest of equal ones, and
+// the cheapest of the 16 lanes (the earliest of equal ones) is taken at the end (cheapest_lane):
+// the plane the scalar sweep takes, with no branch per 16 on which groups beat the split so far.
+// A group may run on into the next 16. Lanes past the end are NaN, which equals nothing.
 // The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitChoice best_on_axis_avx512(
     const SahAxis& sah, const Event* ev, std::size_t size, std::size_t n_left, std::size_t n_right, int axis) {
@@ -1145,6 +1175,12 @@ struct SahCosts16 {
   int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
   int group_left = 0, group_planar = 0;
   float prev = nan_value;
+  // Each lane's cheapest plane so far (strictly cheaper replaces it, so the earliest of equal
+  // ones stays): its cost, its group's last event and whether its planar references go left.
+  __m512 best_cost = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+  __m512i best_at = _mm512_setzero_si512();
+  __mmask16 best_planar = 0;
+  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
 // Lane j gets lane j - K, zeros below.
 #define RTC_SHIFT_UP(v, K) _mm512_maskz_alignr_epi32(0xFFFF, (v), zero_i, 16 - (K))
   for (std::size_t i = 0; i < size; i += 16) {
@@ -1182,42 +1218,43 @@ struct SahCosts16 {
     // up by a running maximum (both only grow along the list).
     const __m512i left_before =
         _mm512_sub_epi32(_mm512_add_epi32(_mm512_set1_epi32(left_base), sp_incl), _mm512_maskz_mov_epi32(sp, one));
-    const __m512i planar_before = _mm512_sub_epi32(planar_incl, _mm512_maskz_mov_epi32(is_planar, one));
     __m512i gl = _mm512_maskz_mov_epi32(group_start, left_before);
-    __m512i gp = _mm512_maskz_mov_epi32(group_start, planar_before);
     gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 1));
-    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 1));
     gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 2));
-    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 2));
     gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 4));
-    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 4));
     gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 8));
-    gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 8));
     gl = _mm512_maskz_max_epi32(0xFFFF, gl, _mm512_set1_epi32(group_left));
-    gp = _mm512_maskz_max_epi32(0xFFFF, gp, _mm512_set1_epi32(group_planar));
     const __m512i left = gl;                                    // n_left before the group
-    const __m512i planar = _mm512_sub_epi32(planar_incl, gp);   // the group's planars (at its end)
     const __m512i right = _mm512_sub_epi32(_mm512_set1_epi32(right_base), ep_incl);  // n_right after it
     const __mmask16 inside = group_end & _mm512_cmp_ps_mask(pos, costs16.lo, _CMP_GT_OQ) &
                              _mm512_cmp_ps_mask(pos, costs16.hi, _CMP_LT_OQ);
     if (inside != 0) {
       __mmask16 planar_left;
-      const __m512 cost = costs16.cost(pos, _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar)),
-                                       _mm512_maskz_cvtepi32_ps(0xFFFF, right), _mm512_maskz_cvtepi32_ps(0xFFFF, left),
-                                       _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar)),
-                                       _mm512_test_epi32_mask(planar, planar), planar_left);
-      const __mmask16 better = inside & _mm512_cmp_ps_mask(cost, _mm512_set1_ps(best.cost), _CMP_LT_OQ);
-      if (better != 0) {
-        alignas(64) float costs[16];
-        _mm512_store_ps(costs, cost);
-        for (unsigned m = better; m != 0; m &= m - 1) {
-          const int j = std::countr_zero(m);
-          if (costs[j] < best.cost) {
-            best = SplitChoice{axis, group_pos(ev, i + static_cast<std::size_t>(j)), ((planar_left >> j) & 1u) != 0,
-                               costs[j]};
-          }
-        }
+      __m512 cost;
+      if (is_planar == 0 && group_planar == planar_base) {
+        // No group ending in these 16 holds a planar event (most of them in most scenes):
+        // both sides' costs are the same, SahCosts16::cost's cost_left.
+        cost = costs16.cost_without_planar(pos, _mm512_maskz_cvtepi32_ps(0xFFFF, left),
+                                           _mm512_maskz_cvtepi32_ps(0xFFFF, right));
+        planar_left = 0xFFFF;
+      } else {
+        const __m512i planar_before = _mm512_sub_epi32(planar_incl, _mm512_maskz_mov_epi32(is_planar, one));
+        __m512i gp = _mm512_maskz_mov_epi32(group_start, planar_before);
+        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 1));
+        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 2));
+        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 4));
+        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 8));
+        gp = _mm512_maskz_max_epi32(0xFFFF, gp, _mm512_set1_epi32(group_planar));
+        const __m512i planar = _mm512_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
+        cost = costs16.cost(pos, _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar)),
+                            _mm512_maskz_cvtepi32_ps(0xFFFF, right), _mm512_maskz_cvtepi32_ps(0xFFFF, left),
+                            _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar)),
+                            _mm512_test_epi32_mask(planar, planar), planar_left);
       }
+      const __mmask16 better = inside & _mm512_cmp_ps_mask(cost, best_cost, _CMP_LT_OQ);
+      best_cost = _mm512_mask_mov_ps(best_cost, better, cost);
+      best_at = _mm512_mask_mov_epi32(best_at, better, _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(i)), lane));
+      best_planar = static_cast<__mmask16>((best_planar & ~better) | (planar_left & better));
     }
     // The open group's counts from the masks, not from gl and gp: the next 16 need not wait
     // for this one's running maximum.
@@ -1232,8 +1269,59 @@ struct SahCosts16 {
     if (rest > 16) prev = ev[i + 15].pos;
   }
 #undef RTC_SHIFT_UP
+  // The cheapest plane, the earliest of equal ones: each lane holds the earliest of its own.
+  const int j = cheapest_lane(best_cost, best_at, best.cost);
+  if (j >= 0) {
+    alignas(64) float costs[16];
+    alignas(64) int at[16];
+    _mm512_store_ps(costs, best_cost);
+    _mm512_store_si512(at, best_at);
+    best = SplitChoice{axis, group_pos(ev, static_cast<std::size_t>(at[j])), ((best_planar >> j) & 1u) != 0, costs[j]};
+  }
   return best;
 }
+
+// best_on_axis_avx512's lanes' cheapest planes for the AVX2 code, 8 lanes: each lane keeps the
+// earliest of its cheapest (strictly cheaper replaces), and take() picks the cheapest lane, the
+// earliest of equal ones, as a scan in list order would.
+struct LaneBests8 {
+  __m256 cost;
+  __m256i at = _mm256_setzero_si256();
+  __m256 planar_left = _mm256_setzero_ps();
+
+  [[gnu::target("avx2")]] explicit LaneBests8(float limit) : cost(_mm256_set1_ps(limit)) {}
+
+  // Planes i..i+7 where `lanes` (a bit per lane) is set, their costs and planar sides.
+  [[gnu::target("avx2")]] void update(unsigned lanes, std::size_t i, __m256 costs, __m256 planar) {
+    const __m256i bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    const __m256i in = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(static_cast<int>(lanes)), bits), bits);
+    const __m256 better = _mm256_and_ps(_mm256_castsi256_ps(in), _mm256_cmp_ps(costs, cost, _CMP_LT_OQ));
+    cost = _mm256_blendv_ps(cost, costs, better);
+    const __m256i index =
+        _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(i)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    at = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(at), _mm256_castsi256_ps(index), better));
+    planar_left = _mm256_blendv_ps(planar_left, planar, better);
+  }
+
+  // The cheapest plane below `limit` (the earliest of equal ones) as the split along `axis` at
+  // pos(index), and its index; SIZE_MAX (split unchanged) where there is none.
+  template <typename Pos>
+  [[gnu::target("avx2")]] std::size_t take(float limit, int axis, Pos pos, SplitChoice& split) const {
+    alignas(32) float costs[8];
+    alignas(32) int where[8];
+    _mm256_store_ps(costs, cost);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(where), at);
+    int j = -1;
+    for (int k = 0; k < 8; ++k) {
+      if (costs[k] < limit || (j >= 0 && costs[k] == limit && where[k] < where[j])) j = k, limit = costs[k];
+    }
+    if (j < 0) return SIZE_MAX;
+    const auto index = static_cast<std::size_t>(where[j]);
+    const unsigned sides = static_cast<unsigned>(_mm256_movemask_ps(planar_left));
+    split = SplitChoice{axis, pos(index), ((sides >> j) & 1u) != 0, costs[j]};
+    return index;
+  }
+};
 
 // SahAxis::cost for 8 candidate planes at once, its float operations in its order (so the
 // same bits): each plane's cost with its planar references on the left and on the right, and
@@ -1261,12 +1349,7 @@ struct SahCosts8 {
                                       __m256& planar_left) const {
     const __m256 has_planar = _mm256_castsi256_ps(
         _mm256_xor_si256(_mm256_cmpeq_epi32(planar, _mm256_setzero_si256()), _mm256_set1_epi32(-1)));
-    const __m256 area_left =
-        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(length(_mm256_mul_ps(_mm256_sub_ps(pos, lo), scale)),
-                                                              perimeter)));
-    const __m256 area_right =
-        _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(length(_mm256_mul_ps(_mm256_sub_ps(hi, pos), scale)),
-                                                              perimeter)));
+    const __m256 area_left = area(_mm256_sub_ps(pos, lo)), area_right = area(_mm256_sub_ps(hi, pos));
     // (a, b) = (left + planar, right), then (left, right + planar).
     const __m256 cost_left = with_bonus(area_left, area_right, _mm256_cvtepi32_ps(_mm256_add_epi32(left, planar)),
                                         _mm256_cvtepi32_ps(right));
@@ -1278,10 +1361,20 @@ struct SahCosts8 {
     return _mm256_blendv_ps(cost_right, cost_left, planar_left);
   }
 
+  // cost() where no plane has planar references: its cost_left, the same bits.
+  [[gnu::target("avx2")]] __m256 cost_without_planar(__m256 pos, __m256i left, __m256i right) const {
+    return with_bonus(area(_mm256_sub_ps(pos, lo)), area(_mm256_sub_ps(hi, pos)), _mm256_cvtepi32_ps(left),
+                      _mm256_cvtepi32_ps(right));
+  }
+
  private:
   // footprint_length, 8 lengths at once.
   [[gnu::target("avx2")]] __m256 length(__m256 x) const {
     return _mm256_add_ps(x, _mm256_mul_ps(grow, _mm256_min_ps(x, cap)));
+  }
+  // A half's area from its cut length (unscaled): 2 (cross + footprint_length(length) perimeter).
+  [[gnu::target("avx2")]] __m256 area(__m256 length_unscaled) const {
+    return _mm256_mul_ps(two, _mm256_add_ps(cross, _mm256_mul_ps(length(_mm256_mul_ps(length_unscaled, scale)), perimeter)));
   }
   // k_t + k_i (area_left a + area_right b), times the empty-space bonus where a or b is 0.
   [[gnu::target("avx2")]] __m256 with_bonus(__m256 area_left, __m256 area_right, __m256 a, __m256 b) const {
@@ -1295,8 +1388,9 @@ struct SahCosts8 {
 // best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
 // sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
 // alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
-// order, the same scalar pick of the groups that beat the split so far. The last, partial 8
-// are copied out with padding events (NaN positions, type 3, which is no event type).
+// order, one cost where no group in the 8 holds a planar event, and the same cheapest plane per
+// lane, picked at the end (LaneBests8). The last, partial 8 are copied out with padding events
+// (NaN positions, type 3, which is no event type).
 #define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
 #define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
@@ -1314,6 +1408,7 @@ struct SahCosts8 {
   int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
   int group_left = 0, group_planar = 0;
   float prev = nan_value;
+  LaneBests8 bests(best.cost);
   alignas(32) Event tail[8];
   for (std::size_t i = 0; i < size; i += 8) {
     const std::size_t rest = size - i;
@@ -1352,43 +1447,37 @@ struct SahCosts8 {
     // Before each event: n_left and the planars so far (sp_v and planar_v are -1 where set);
     // kept at the group starts and carried up by a running maximum.
     const __m256i left_before = _mm256_add_epi32(_mm256_add_epi32(_mm256_set1_epi32(left_base), sp_incl), sp_v);
-    const __m256i planar_before = _mm256_add_epi32(planar_incl, planar_v);
     const __m256i start_i = _mm256_castps_si256(start_v);
     __m256i gl = _mm256_and_si256(start_i, left_before);
-    __m256i gp = _mm256_and_si256(start_i, planar_before);
     gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 1));
-    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 1));
     gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 2));
-    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 2));
     gl = _mm256_max_epi32(gl, RTC_SHIFT_UP4(gl));
-    gp = _mm256_max_epi32(gp, RTC_SHIFT_UP4(gp));
     const __m256i left = _mm256_max_epi32(gl, _mm256_set1_epi32(group_left));  // n_left before the group
-    gp = _mm256_max_epi32(gp, _mm256_set1_epi32(group_planar));
-    const __m256i planar = _mm256_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
     const __m256i right = _mm256_sub_epi32(_mm256_set1_epi32(right_base), ep_incl);  // n_right after it
     const __m256 in_box = _mm256_and_ps(_mm256_cmp_ps(pos, sah8.lo, _CMP_GT_OQ), _mm256_cmp_ps(pos, sah8.hi, _CMP_LT_OQ));
     const unsigned inside = group_end & static_cast<unsigned>(_mm256_movemask_ps(in_box));
+    const unsigned is_planar = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(planar_v)));
     if (inside != 0) {
       __m256 planar_left_v;
-      const __m256 cost = sah8.cost(pos, left, right, planar, planar_left_v);
-      const unsigned better =
-          inside & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(cost, _mm256_set1_ps(best.cost), _CMP_LT_OQ)));
-      if (better != 0) {
-        const unsigned planar_left = static_cast<unsigned>(_mm256_movemask_ps(planar_left_v));
-        alignas(32) float costs[8];
-        _mm256_store_ps(costs, cost);
-        for (unsigned m = better; m != 0; m &= m - 1) {
-          const int j = std::countr_zero(m);
-          if (costs[j] < best.cost) {
-            best = SplitChoice{axis, group_pos(ev, i + static_cast<std::size_t>(j)), ((planar_left >> j) & 1u) != 0,
-                               costs[j]};
-          }
-        }
+      __m256 cost;
+      if (is_planar == 0 && group_planar == planar_base) {
+        // No group ending in these 8 holds a planar event: SahCosts8::cost's cost_left.
+        cost = sah8.cost_without_planar(pos, left, right);
+        planar_left_v = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+      } else {
+        const __m256i planar_before = _mm256_add_epi32(planar_incl, planar_v);
+        __m256i gp = _mm256_and_si256(start_i, planar_before);
+        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 1));
+        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 2));
+        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP4(gp));
+        gp = _mm256_max_epi32(gp, _mm256_set1_epi32(group_planar));
+        const __m256i planar = _mm256_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
+        cost = sah8.cost(pos, left, right, planar, planar_left_v);
       }
+      bests.update(inside, i, cost, planar_left_v);
     }
     // The open group's counts from the masks (the next 8 need not wait for this one's maxima).
     const unsigned sp = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(sp_v)));
-    const unsigned is_planar = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(planar_v)));
     const unsigned ep = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(ep_v)));
     if (group_start != 0) {
       const unsigned before_last = (1u << (31 - std::countl_zero(group_start))) - 1u;
@@ -1400,6 +1489,7 @@ struct SahCosts8 {
     right_base -= std::popcount(ep);
     if (rest > 8) prev = ev[i + 7].pos;
   }
+  bests.take(best.cost, axis, [ev](std::size_t k) { return group_pos(ev, k); }, best);
   return best;
 }
 #undef RTC_SHIFT_UP4
@@ -1412,8 +1502,10 @@ SplitChoice best_on_axis(const BuildContext& ctx, const Event* ev, std::size_t s
                          std::size_t n_right, const Aabb& box, int axis, const SahFrame& frame) {
   if (!(box.hi[axis] > box.lo[axis])) return SplitChoice{};
   const SahAxis sah(ctx.options, box, axis, frame, ctx.sah_scale);
-  if (ctx.avx512) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
-  if (ctx.avx2) return best_on_axis_avx2(sah, ev, size, n_left, n_right, axis);
+  // The vector sweeps hold event indices as 32-bit lanes.
+  const bool vector = size < static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) - 16;
+  if (ctx.avx512 && vector) return best_on_axis_avx512(sah, ev, size, n_left, n_right, axis);
+  if (ctx.avx2 && vector) return best_on_axis_avx2(sah, ev, size, n_left, n_right, axis);
   SplitChoice best;
   sweep_groups(ev, 0, size, size, sah, axis, n_left, n_right, best);
   return best;
@@ -1462,8 +1554,10 @@ bool mask_scan_avx512() {
 
 // scan_planes 8 planes at a time: the three popcounts of each plane with VPOPCNTDQ and SahAxis::
 // cost()'s float operations in its order (separate multiplies and adds, as -ffp-contract=off
-// compiles the scalar code), so the same costs bit for bit. Planes that beat the split so far
-// are then taken in ascending order with scan_planes's comparison, so the same plane wins.
+// compiles the scalar code), so the same costs bit for bit; where no plane of the subtree has a
+// planar reference (MaskPlanes::any_planar), one cost per plane. Each lane keeps its cheapest
+// plane below the split so far and the cheapest lane is taken at the end (cheapest_lane, as in
+// best_on_axis_avx512), so the plane scan_planes takes, ties to the lowest.
 // The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
 // Planes i..i+7's popcounts of `words` & `m`, the words' counts summed.
 template <int W>
@@ -1475,21 +1569,6 @@ template <int W>
                          _mm512_maskz_popcnt_epi64(0xFF, _mm512_and_si512(_mm512_loadu_si512(words[w].data() + i), m[w])));
   }
   return n;
-}
-
-// The plane scans' last step: of the 8 planes from index i whose lanes are set in `better`
-// (cheaper than split.cost when it was broadcast), each one still cheaper in lane order becomes
-// the split (so the first of equal costs wins, as in the scalar scan).
-[[gnu::always_inline]] inline void take_cheaper(unsigned better, const float* costs, const float* at,
-                                                unsigned planar_left, int axis, std::size_t i, SplitChoice& split,
-                                                std::size_t& chosen) {
-  for (; better != 0; better &= better - 1) {
-    const int j = std::countr_zero(better);
-    if (costs[j] < split.cost) {
-      split = SplitChoice{axis, at[j], ((planar_left >> j) & 1u) != 0, costs[j]};
-      chosen = i + static_cast<std::size_t>(j);
-    }
-  }
 }
 
 // Two halves of 8 planes' 64-bit counts as 16 floats, planes i..i+7 in the low half.
@@ -1513,10 +1592,15 @@ template <int W>
   const auto joined = [](__mmask8 low, __mmask8 high) {
     return static_cast<__mmask16>(static_cast<unsigned>(low) | (static_cast<unsigned>(high) << 8));
   };
+  // Each lane's cheapest plane below the split so far (as in best_on_axis_avx512).
+  __m512 best_cost = _mm512_set1_ps(split.cost);
+  __m512i best_at = _mm512_setzero_si512();
+  __mmask16 best_planar = 0;
+  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   for (std::size_t i = from;; i += 16) {  // the padding at +inf ends it
     const __m512 pos = _mm512_loadu_ps(planes.pos.data() + i);
     const __mmask16 in_range = _mm512_cmp_ps_mask(pos, v_hi, _CMP_LT_OQ);
-    if (in_range == 0) return;
+    if (in_range == 0) break;
     __mmask8 owned_low = 0, owned_high = 0;
     for (int w = 0; w < W; ++w) {
       owned_low |= _mm512_test_epi64_mask(_mm512_loadu_si512(planes.owners[w].data() + i), m[w]);
@@ -1527,32 +1611,44 @@ template <int W>
       const __m512i left_low = mask_counts<W>(planes.below, i, m), left_high = mask_counts<W>(planes.below, i + 8, m);
       const __m512i right_low = mask_counts<W>(planes.above, i, m);
       const __m512i right_high = mask_counts<W>(planes.above, i + 8, m);
-      const __m512i planar_low = mask_counts<W>(planes.planar, i, m);
-      const __m512i planar_high = mask_counts<W>(planes.planar, i + 8, m);
-      const __mmask16 has_planar =
-          joined(_mm512_test_epi64_mask(planar_low, planar_low), _mm512_test_epi64_mask(planar_high, planar_high));
-      __mmask16 planar_left;
-      const __m512 best = costs16.cost(
-          pos, counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high)),
-          counts_as_floats(right_low, right_high), counts_as_floats(left_low, left_high),
-          counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high)),
-          has_planar, planar_left);
-      unsigned better = valid & _mm512_cmp_ps_mask(best, _mm512_set1_ps(split.cost), _CMP_LT_OQ);
-      if (better != 0) {
-        alignas(64) float costs[16], at[16];
-        _mm512_store_ps(costs, best);
-        _mm512_store_ps(at, pos);
-        take_cheaper(better, costs, at, planar_left, axis, i, split, chosen);
+      __mmask16 planar_left = 0xFFFF;
+      __m512 best;
+      if (!planes.any_planar) {
+        best = costs16.cost_without_planar(pos, counts_as_floats(left_low, left_high),
+                                           counts_as_floats(right_low, right_high));
+      } else {
+        const __m512i planar_low = mask_counts<W>(planes.planar, i, m);
+        const __m512i planar_high = mask_counts<W>(planes.planar, i + 8, m);
+        const __mmask16 has_planar =
+            joined(_mm512_test_epi64_mask(planar_low, planar_low), _mm512_test_epi64_mask(planar_high, planar_high));
+        best = costs16.cost(
+            pos, counts_as_floats(_mm512_add_epi64(left_low, planar_low), _mm512_add_epi64(left_high, planar_high)),
+            counts_as_floats(right_low, right_high), counts_as_floats(left_low, left_high),
+            counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high)),
+            has_planar, planar_left);
       }
+      const __mmask16 better = valid & _mm512_cmp_ps_mask(best, best_cost, _CMP_LT_OQ);
+      best_cost = _mm512_mask_mov_ps(best_cost, better, best);
+      best_at = _mm512_mask_mov_epi32(best_at, better, _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(i)), lane));
+      best_planar = static_cast<__mmask16>((best_planar & ~better) | (planar_left & better));
     }
-    if (in_range != 0xFFFF) return;
+    if (in_range != 0xFFFF) break;
+  }
+  const int j = cheapest_lane(best_cost, best_at, split.cost);
+  if (j >= 0) {
+    alignas(64) float costs[16];
+    alignas(64) int at[16];
+    _mm512_store_ps(costs, best_cost);
+    _mm512_store_si512(at, best_at);
+    chosen = static_cast<std::size_t>(at[j]);
+    split = SplitChoice{axis, planes.pos[chosen], ((best_planar >> j) & 1u) != 0, costs[j]};
   }
 }
 
 // scan_planes_avx512 for CPUs with AVX2 but without AVX-512 VPOPCNTDQ: the popcounts of 4
 // planes' words at a time by nibble lookups (PSHUFB) summed per plane (PSADBW), two such halves
 // packed into 8 counts, then the same float operations in SahAxis::cost()'s order and the same
-// scalar pick of the planes that beat the split so far.
+// cheapest plane per lane, picked at the end (LaneBests8).
 template <int W>
 [[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i mask_counts_avx2(
     const std::vector<std::uint64_t> (&words)[kMaskWords], std::size_t i, const __m256i* m) {
@@ -1587,10 +1683,11 @@ template <int W>
   const __m256 v_hi = _mm256_set1_ps(hi);
   const SahCosts8 sah8(sah);
   const __m256i zero_i = _mm256_setzero_si256();
+  LaneBests8 bests(split.cost);  // as best_on_axis_avx2
   for (std::size_t i = from;; i += 8) {  // the padding at +inf ends it
     const __m256 pos = _mm256_loadu_ps(planes.pos.data() + i);
     const unsigned in_range = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(pos, v_hi, _CMP_LT_OQ)));
-    if (in_range == 0) return;
+    if (in_range == 0) break;
     __m256i owned_lo = zero_i, owned_hi = zero_i;
     for (int w = 0; w < W; ++w) {
       const __m256i* o = reinterpret_cast<const __m256i*>(planes.owners[w].data() + i);
@@ -1604,21 +1701,16 @@ template <int W>
     if (valid != 0) {
       const __m256i n_left = mask_counts8_avx2<W>(planes.below, i, m);
       const __m256i n_right = mask_counts8_avx2<W>(planes.above, i, m);
-      const __m256i n_planar = mask_counts8_avx2<W>(planes.planar, i, m);
-      __m256 planar_left_v;
-      const __m256 best = sah8.cost(pos, n_left, n_right, n_planar, planar_left_v);
-      unsigned better =
-          valid & static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(best, _mm256_set1_ps(split.cost), _CMP_LT_OQ)));
-      if (better != 0) {
-        const unsigned planar_left = static_cast<unsigned>(_mm256_movemask_ps(planar_left_v));
-        alignas(32) float costs[8], at[8];
-        _mm256_store_ps(costs, best);
-        _mm256_store_ps(at, pos);
-        take_cheaper(better, costs, at, planar_left, axis, i, split, chosen);
-      }
+      __m256 planar_left_v = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+      const __m256 best = planes.any_planar
+                              ? sah8.cost(pos, n_left, n_right, mask_counts8_avx2<W>(planes.planar, i, m), planar_left_v)
+                              : sah8.cost_without_planar(pos, n_left, n_right);
+      bests.update(valid, i, best, planar_left_v);
     }
-    if (in_range != 0xFF) return;
+    if (in_range != 0xFF) break;
   }
+  const std::size_t taken = bests.take(split.cost, axis, [&planes](std::size_t k) { return planes.pos[k]; }, split);
+  if (taken != SIZE_MAX) chosen = taken;
 }
 
 // BlockBuilder::node's classification of the references by their events on the split axis at
@@ -1813,6 +1905,7 @@ class MaskBuilder {
       // words the four writes per word and event cost more than the branches they save.)
       std::uint64_t below = 0, gone = 0;             // started (or planar) before the plane; ended before it
       std::uint64_t start = 0, end = 0, planar = 0;  // the present group's
+      std::uint64_t any_planar = 0;
       const Event* e = ev[axis];
       const std::size_t n = len[axis];
       std::size_t k = 0;
@@ -1830,6 +1923,7 @@ class MaskBuilder {
         planes.above[0][k] = all.w[0] & ~(gone | end | planar);
         planes.planar[0][k] = planar;
         planes.owners[0][k] = start | end | planar;
+        any_planar |= planar;
         below |= (start | planar) & keep;
         gone |= (end | planar) & keep;
         start &= ~keep;
@@ -1838,6 +1932,7 @@ class MaskBuilder {
         k += last;
       }
       planes.size = k;
+      planes.any_planar = any_planar != 0;
       planes.finish<W>();
     }
     if (ctx_.avx512 && mask_scan_avx512()) {

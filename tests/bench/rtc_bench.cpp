@@ -440,6 +440,11 @@ int run(int argc, char** argv) {
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
       ->check(CLI::Range(-1, 256))
       ->capture_default_str();
+  std::string kd_build_isa;
+  app.add_option("--kd-build-isa", kd_build_isa,
+                 "the widest vector code the kd-tree build takes (KdBuildOptions::simd_limit; sse4: the scalar "
+                 "code), as far as the CPU goes; every choice builds the same tree (default: avx512)")
+      ->check(CLI::IsMember({"sse4", "avx2", "avx512"}));
   int ab_mask_below = -2;  // -1 is a value (the default's rule)
   app.add_option("--ab-kd-mask-below", ab_mask_below, ab_help("mask-below"))->check(CLI::Range(-1, 256));
   int ab_max_depth = -1;
@@ -502,6 +507,7 @@ int run(int argc, char** argv) {
     throw rtc::Error("--tiles applies to the primary and shadow modes (the full mode renders whole frames): give "
                      "--mode primary and/or --mode shadow");
   }
+  if (!kd_build_isa.empty()) kd_options.simd_limit = rtc::parse_isa(kd_build_isa);
   if (!tile_share.whole() && !dump_prefix.empty()) throw rtc::Error("--dump writes whole images: leave out --tiles");
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
@@ -649,6 +655,7 @@ int run(int argc, char** argv) {
                          {"kd_refs", kd.prim_refs},
                          {"kd_bytes", kd.bytes},
                          {"kd_clip", kd_options.clip},
+                         {"kd_build_isa", std::string(rtc::isa_name(kd_options.simd_limit))},
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_footprint", kd_options.footprint_pixels},
                          {"kd_footprint_max_refs", kd_options.footprint_max_refs},
