@@ -1152,11 +1152,12 @@ struct SahCosts16 {
 // n_left will be) and the ends and planars up to it (what n_right loses); a running maximum
 // over the group starts carries each group's first count to its end, where its SAH costs are
 // SahAxis::cost()'s float operations in its order (separate multiplies and adds, as
-// -ffp-contract=off compiles the scalar code), so the same bits. Where no group ending in the 16
-// holds a planar event (most of them in most scenes) only one cost is computed, the same as
-// either. Each lane keeps the cheapest group that ended in it, the earliest of equal ones, and
-// the cheapest of the 16 lanes (the earliest of equal ones) is taken at the end (cheapest_lane):
-// the plane the scalar sweep takes, with no branch per 16 on which groups beat the split so far.
+// -ffp-contract=off compiles the scalar code), so the same bits. Where no event of the 16 is
+// planar and the group left open by the 16 before holds none either (most steps in most
+// scenes), only one cost is computed, the same as either. Each lane keeps the cheapest group
+// that ended in it, the earliest of equal ones, and the cheapest of the 16 lanes (the earliest
+// of equal ones) is taken at the end (cheapest_lane): the plane the scalar sweep takes, with no
+// branch per 16 on which groups beat the split so far.
 // A group may run on into the next 16. Lanes past the end are NaN, which equals nothing.
 // The zero-masking forms, as in simd.h (GCC 12's plain ones trip -Wmaybe-uninitialized).
 [[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt")]] SplitChoice best_on_axis_avx512(
@@ -1388,9 +1389,9 @@ struct SahCosts8 {
 // best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
 // sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
 // alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
-// order, one cost where no group in the 8 holds a planar event, and the same cheapest plane per
-// lane, picked at the end (LaneBests8). The last, partial 8 are copied out with padding events
-// (NaN positions, type 3, which is no event type).
+// order, one cost where no event of the 8 (nor of the group left open) is planar, and the same
+// cheapest plane per lane, picked at the end (LaneBests8). The last, partial 8 are copied out
+// with padding events (NaN positions, type 3, which is no event type).
 #define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
 #define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
@@ -1552,7 +1553,7 @@ bool mask_scan_avx512() {
   return ok;
 }
 
-// scan_planes 8 planes at a time: the three popcounts of each plane with VPOPCNTDQ and SahAxis::
+// scan_planes 16 planes at a time: the three popcounts of each plane with VPOPCNTDQ and SahAxis::
 // cost()'s float operations in its order (separate multiplies and adds, as -ffp-contract=off
 // compiles the scalar code), so the same costs bit for bit; where no plane of the subtree has a
 // planar reference (MaskPlanes::any_planar), one cost per plane. Each lane keeps its cheapest

@@ -655,7 +655,7 @@ int run(int argc, char** argv) {
                          {"kd_refs", kd.prim_refs},
                          {"kd_bytes", kd.bytes},
                          {"kd_clip", kd_options.clip},
-                         {"kd_build_isa", std::string(rtc::isa_name(kd_options.simd_limit))},
+                         {"kd_build_isa_limit", std::string(rtc::isa_name(kd_options.simd_limit))},
                          {"kd_traversal_cost", kd_options.traversal_cost},
                          {"kd_footprint", kd_options.footprint_pixels},
                          {"kd_footprint_max_refs", kd_options.footprint_max_refs},
