@@ -1147,6 +1147,34 @@ struct SahCosts16 {
   }
 };
 
+// Lane j gets lane j - K, zeros below. The zero-masking forms, as in simd.h (GCC 12's plain ones
+// trip -Wmaybe-uninitialized).
+template <int K>
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt"), gnu::always_inline]] inline __m512i shift_up16(__m512i v) {
+  return _mm512_maskz_alignr_epi32(0xFFFF, v, _mm512_setzero_si512(), 16 - K);
+}
+
+// Inclusive prefix sums over the 16 lanes.
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt"), gnu::always_inline]] inline __m512i prefix_sums16(__m512i v) {
+  v = _mm512_add_epi32(v, shift_up16<1>(v));
+  v = _mm512_add_epi32(v, shift_up16<2>(v));
+  v = _mm512_add_epi32(v, shift_up16<4>(v));
+  return _mm512_add_epi32(v, shift_up16<8>(v));
+}
+
+// Each lane's value at its group's start, carried up to the group's other lanes by a running
+// maximum (the counts it carries only grow along the list), and at least `open`, the value at
+// the start of the group left open by the 16 before, for the lanes before the first start.
+[[gnu::target("avx512f,avx512dq,avx512vl,avx512bw,avx2,popcnt"), gnu::always_inline]] inline __m512i carry_group_start16(
+    __mmask16 group_start, __m512i value, int open) {
+  __m512i g = _mm512_maskz_mov_epi32(group_start, value);
+  g = _mm512_maskz_max_epi32(0xFFFF, g, shift_up16<1>(g));
+  g = _mm512_maskz_max_epi32(0xFFFF, g, shift_up16<2>(g));
+  g = _mm512_maskz_max_epi32(0xFFFF, g, shift_up16<4>(g));
+  g = _mm512_maskz_max_epi32(0xFFFF, g, shift_up16<8>(g));
+  return _mm512_maskz_max_epi32(0xFFFF, g, _mm512_set1_epi32(open));
+}
+
 // sweep_groups 16 events at a time. An event ends its group where the next event's position
 // differs. Prefix sums over the 16 count the starts and planars before each event (what
 // n_left will be) and the ends and planars up to it (what n_right loses); a running maximum
@@ -1165,7 +1193,7 @@ struct SahCosts16 {
   SplitChoice best;
   const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
   const __m512i odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-  const __m512i zero_i = _mm512_setzero_si512(), one = _mm512_set1_epi32(1), three = _mm512_set1_epi32(3);
+  const __m512i one = _mm512_set1_epi32(1), three = _mm512_set1_epi32(3);
   const __m512i end_type = _mm512_set1_epi32(kEnd), planar_type = _mm512_set1_epi32(kPlanar);
   const __m512i start_type = _mm512_set1_epi32(kStart), low10 = _mm512_set1_epi32(0x3FF);
   const SahCosts16 costs16(sah);
@@ -1182,8 +1210,6 @@ struct SahCosts16 {
   __m512i best_at = _mm512_setzero_si512();
   __mmask16 best_planar = 0;
   const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-// Lane j gets lane j - K, zeros below.
-#define RTC_SHIFT_UP(v, K) _mm512_maskz_alignr_epi32(0xFFFF, (v), zero_i, 16 - (K))
   for (std::size_t i = 0; i < size; i += 16) {
     const std::size_t rest = size - i;
     const __mmask16 live = rest >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << rest) - 1u);
@@ -1207,25 +1233,14 @@ struct SahCosts16 {
     __m512i sums = _mm512_add_epi32(
         _mm512_add_epi32(_mm512_maskz_mov_epi32(sp, one), _mm512_maskz_mov_epi32(is_planar, _mm512_set1_epi32(1 << 10))),
         _mm512_maskz_mov_epi32(ep, _mm512_set1_epi32(1 << 20)));
-    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 1));
-    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 2));
-    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 4));
-    sums = _mm512_add_epi32(sums, RTC_SHIFT_UP(sums, 8));
+    sums = prefix_sums16(sums);
     const __m512i sp_incl = _mm512_and_si512(sums, low10);
-    const __m512i planar_incl =
-        _mm512_add_epi32(_mm512_set1_epi32(planar_base), _mm512_and_si512(_mm512_maskz_srli_epi32(0xFFFF, sums, 10), low10));
     const __m512i ep_incl = _mm512_maskz_srli_epi32(0xFFFF, sums, 20);
     // Before each event: n_left and the planars so far; kept at the group starts and carried
     // up by a running maximum (both only grow along the list).
     const __m512i left_before =
         _mm512_sub_epi32(_mm512_add_epi32(_mm512_set1_epi32(left_base), sp_incl), _mm512_maskz_mov_epi32(sp, one));
-    __m512i gl = _mm512_maskz_mov_epi32(group_start, left_before);
-    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 1));
-    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 2));
-    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 4));
-    gl = _mm512_maskz_max_epi32(0xFFFF, gl, RTC_SHIFT_UP(gl, 8));
-    gl = _mm512_maskz_max_epi32(0xFFFF, gl, _mm512_set1_epi32(group_left));
-    const __m512i left = gl;                                    // n_left before the group
+    const __m512i left = carry_group_start16(group_start, left_before, group_left);  // n_left before the group
     const __m512i right = _mm512_sub_epi32(_mm512_set1_epi32(right_base), ep_incl);  // n_right after it
     const __mmask16 inside = group_end & _mm512_cmp_ps_mask(pos, costs16.lo, _CMP_GT_OQ) &
                              _mm512_cmp_ps_mask(pos, costs16.hi, _CMP_LT_OQ);
@@ -1239,14 +1254,12 @@ struct SahCosts16 {
                                            _mm512_maskz_cvtepi32_ps(0xFFFF, right));
         planar_left = 0xFFFF;
       } else {
+        const __m512i planar_incl = _mm512_add_epi32(
+            _mm512_set1_epi32(planar_base), _mm512_and_si512(_mm512_maskz_srli_epi32(0xFFFF, sums, 10), low10));
         const __m512i planar_before = _mm512_sub_epi32(planar_incl, _mm512_maskz_mov_epi32(is_planar, one));
-        __m512i gp = _mm512_maskz_mov_epi32(group_start, planar_before);
-        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 1));
-        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 2));
-        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 4));
-        gp = _mm512_maskz_max_epi32(0xFFFF, gp, RTC_SHIFT_UP(gp, 8));
-        gp = _mm512_maskz_max_epi32(0xFFFF, gp, _mm512_set1_epi32(group_planar));
-        const __m512i planar = _mm512_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
+        // The group's planars (at its end).
+        const __m512i planar =
+            _mm512_sub_epi32(planar_incl, carry_group_start16(group_start, planar_before, group_planar));
         cost = costs16.cost(pos, _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(left, planar)),
                             _mm512_maskz_cvtepi32_ps(0xFFFF, right), _mm512_maskz_cvtepi32_ps(0xFFFF, left),
                             _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar)),
@@ -1269,7 +1282,6 @@ struct SahCosts16 {
     right_base -= std::popcount(static_cast<unsigned>(ep));
     if (rest > 16) prev = ev[i + 15].pos;
   }
-#undef RTC_SHIFT_UP
   // The cheapest plane, the earliest of equal ones: each lane holds the earliest of its own.
   const int j = cheapest_lane(best_cost, best_at, best.cost);
   if (j >= 0) {
@@ -1386,14 +1398,37 @@ struct SahCosts8 {
   }
 };
 
+// Lane j gets lane j - K, zeros below: an alignr on the vector and its low half moved up (the
+// shift crosses the two 128-bit halves).
+template <int K>
+[[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i shift_up8(__m256i v) {
+  const __m256i low_half_up = _mm256_permute2x128_si256(v, v, 0x08);
+  if constexpr (K == 4) return low_half_up;
+  else return _mm256_alignr_epi8(v, low_half_up, 16 - 4 * K);
+}
+
+// Inclusive prefix sums over the 8 lanes.
+[[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i prefix_sums8(__m256i v) {
+  v = _mm256_add_epi32(v, shift_up8<1>(v));
+  v = _mm256_add_epi32(v, shift_up8<2>(v));
+  return _mm256_add_epi32(v, shift_up8<4>(v));
+}
+
+// carry_group_start16 for 8 lanes; `start` is -1 in the lanes that start a group.
+[[gnu::target("avx2,popcnt"), gnu::always_inline]] inline __m256i carry_group_start8(__m256i start, __m256i value,
+                                                                                    int open) {
+  __m256i g = _mm256_and_si256(start, value);
+  g = _mm256_max_epi32(g, shift_up8<1>(g));
+  g = _mm256_max_epi32(g, shift_up8<2>(g));
+  g = _mm256_max_epi32(g, shift_up8<4>(g));
+  return _mm256_max_epi32(g, _mm256_set1_epi32(open));
+}
+
 // best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
-// sums and running maxima over the 8 (lanes shifted across the two 128-bit halves by an
-// alignr on the vector and its low half moved up), the same float operations in SahAxis::cost()'s
-// order, one cost where no event of the 8 (nor of the group left open) is planar, and the same
+// sums and running maxima over the 8 (prefix_sums8, carry_group_start8), the same float
+// operations in SahAxis::cost()'s order, one cost where no event of the 8 (nor of the group left open) is planar, and the same
 // cheapest plane per lane, picked at the end (LaneBests8). The last, partial 8 are copied out
 // with padding events (NaN positions, type 3, which is no event type).
-#define RTC_SHIFT_UP(v, K) _mm256_alignr_epi8((v), _mm256_permute2x128_si256((v), (v), 0x08), 16 - 4 * (K))
-#define RTC_SHIFT_UP4(v) _mm256_permute2x128_si256((v), (v), 0x08)
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
                                                            std::size_t n_left, std::size_t n_right, int axis) {
   SplitChoice best;
@@ -1438,22 +1473,14 @@ struct SahCosts8 {
     // and planars in 20-29.
     __m256i sums = _mm256_add_epi32(_mm256_and_si256(sp_v, one), _mm256_and_si256(planar_v, planar_one));
     sums = _mm256_add_epi32(sums, _mm256_and_si256(ep_v, end_one));
-    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP(sums, 1));
-    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP(sums, 2));
-    sums = _mm256_add_epi32(sums, RTC_SHIFT_UP4(sums));
+    sums = prefix_sums8(sums);
     const __m256i sp_incl = _mm256_and_si256(sums, low10);
-    const __m256i planar_incl =
-        _mm256_add_epi32(_mm256_set1_epi32(planar_base), _mm256_and_si256(_mm256_srli_epi32(sums, 10), low10));
     const __m256i ep_incl = _mm256_srli_epi32(sums, 20);
     // Before each event: n_left and the planars so far (sp_v and planar_v are -1 where set);
     // kept at the group starts and carried up by a running maximum.
     const __m256i left_before = _mm256_add_epi32(_mm256_add_epi32(_mm256_set1_epi32(left_base), sp_incl), sp_v);
     const __m256i start_i = _mm256_castps_si256(start_v);
-    __m256i gl = _mm256_and_si256(start_i, left_before);
-    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 1));
-    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP(gl, 2));
-    gl = _mm256_max_epi32(gl, RTC_SHIFT_UP4(gl));
-    const __m256i left = _mm256_max_epi32(gl, _mm256_set1_epi32(group_left));  // n_left before the group
+    const __m256i left = carry_group_start8(start_i, left_before, group_left);  // n_left before the group
     const __m256i right = _mm256_sub_epi32(_mm256_set1_epi32(right_base), ep_incl);  // n_right after it
     const __m256 in_box = _mm256_and_ps(_mm256_cmp_ps(pos, sah8.lo, _CMP_GT_OQ), _mm256_cmp_ps(pos, sah8.hi, _CMP_LT_OQ));
     const unsigned inside = group_end & static_cast<unsigned>(_mm256_movemask_ps(in_box));
@@ -1466,13 +1493,11 @@ struct SahCosts8 {
         cost = sah8.cost_without_planar(pos, left, right);
         planar_left_v = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
       } else {
+        const __m256i planar_incl =
+            _mm256_add_epi32(_mm256_set1_epi32(planar_base), _mm256_and_si256(_mm256_srli_epi32(sums, 10), low10));
         const __m256i planar_before = _mm256_add_epi32(planar_incl, planar_v);
-        __m256i gp = _mm256_and_si256(start_i, planar_before);
-        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 1));
-        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP(gp, 2));
-        gp = _mm256_max_epi32(gp, RTC_SHIFT_UP4(gp));
-        gp = _mm256_max_epi32(gp, _mm256_set1_epi32(group_planar));
-        const __m256i planar = _mm256_sub_epi32(planar_incl, gp);  // the group's planars (at its end)
+        // The group's planars (at its end).
+        const __m256i planar = _mm256_sub_epi32(planar_incl, carry_group_start8(start_i, planar_before, group_planar));
         cost = sah8.cost(pos, left, right, planar, planar_left_v);
       }
       bests.update(inside, i, cost, planar_left_v);
@@ -1493,8 +1518,6 @@ struct SahCosts8 {
   bests.take(best.cost, axis, [ev](std::size_t k) { return group_pos(ev, k); }, best);
   return best;
 }
-#undef RTC_SHIFT_UP4
-#undef RTC_SHIFT_UP
 
 // One sweep over an axis's sorted events. The events may be a window of the axis: `n_left`
 // references start and `n_right` end beyond everything before it. With options.simd, 16 events
