@@ -1426,9 +1426,10 @@ template <int K>
 
 // best_on_axis_avx512 8 events at a time, for CPUs with AVX2 but not AVX-512: the same prefix
 // sums and running maxima over the 8 (prefix_sums8, carry_group_start8), the same float
-// operations in SahAxis::cost()'s order, one cost where no event of the 8 (nor of the group left open) is planar, and the same
-// cheapest plane per lane, picked at the end (LaneBests8). The last, partial 8 are copied out
-// with padding events (NaN positions, type 3, which is no event type).
+// operations in SahAxis::cost()'s order, one cost where no event of the 8 (nor of the group left
+// open) is planar, and the same cheapest plane per lane, picked at the end (LaneBests8). The
+// last, partial 8 are copied out with padding events (NaN positions, type 3, which is no event
+// type).
 [[gnu::target("avx2,popcnt")]] SplitChoice best_on_axis_avx2(const SahAxis& sah, const Event* ev, std::size_t size,
                                                            std::size_t n_left, std::size_t n_right, int axis) {
   SplitChoice best;
