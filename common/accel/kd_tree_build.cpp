@@ -1092,6 +1092,45 @@ void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const Bui
   return std::countr_zero(static_cast<unsigned>(cheapest & _mm512_cmpeq_epi32_mask(at, a)));
 }
 
+// The AVX-512 code's lanes' cheapest planes, 16 lanes: each lane keeps the earliest of its
+// cheapest (strictly cheaper replaces), and take() picks the cheapest lane, the earliest of equal
+// ones (cheapest_lane), as a scan in list order would. Shared by the event sweep
+// (best_on_axis_avx512) and the bit-mask stage's plane scan (scan_planes_avx512), as LaneBests8
+// is by their AVX2 forms.
+struct LaneBests16 {
+  __m512 cost;
+  __m512i at = _mm512_setzero_si512();
+  __mmask16 planar_left = 0;
+
+  [[gnu::target("avx512f")]] explicit LaneBests16(float limit) : cost(_mm512_set1_ps(limit)) {}
+
+  // Planes i..i+15 where `lanes` is set, their costs and the lanes that put their planar
+  // references on the left.
+  [[gnu::target("avx512f"), gnu::always_inline]] void update(__mmask16 lanes, std::size_t i, __m512 costs,
+                                                             __mmask16 planar) {
+    const __mmask16 better = lanes & _mm512_cmp_ps_mask(costs, cost, _CMP_LT_OQ);
+    cost = _mm512_mask_mov_ps(cost, better, costs);
+    const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    at = _mm512_mask_mov_epi32(at, better, _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(i)), lane));
+    planar_left = static_cast<__mmask16>((planar_left & ~better) | (planar & better));
+  }
+
+  // The cheapest plane below `limit` (the earliest of equal ones) as the split along `axis` at
+  // pos(index), and its index; SIZE_MAX (split unchanged) where there is none.
+  template <typename Pos>
+  [[gnu::target("avx512f")]] std::size_t take(float limit, int axis, Pos pos, SplitChoice& split) const {
+    const int j = cheapest_lane(cost, at, limit);
+    if (j < 0) return SIZE_MAX;
+    alignas(64) float costs[16];
+    alignas(64) int where[16];
+    _mm512_store_ps(costs, cost);
+    _mm512_store_si512(where, at);
+    const auto index = static_cast<std::size_t>(where[j]);
+    split = SplitChoice{axis, pos(index), ((planar_left >> j) & 1u) != 0, costs[j]};
+    return index;
+  }
+};
+
 // SahAxis::cost for 16 candidate planes at once, its float operations in its order (so the
 // same bits): each plane's cost with its planar references on the left, (left_planar, right),
 // and on the right, (left, right_planar), and the cheaper where `has_planar` (ties to the left);
@@ -1204,12 +1243,9 @@ template <int K>
   int left_base = static_cast<int>(n_left), planar_base = 0, right_base = static_cast<int>(n_right);
   int group_left = 0, group_planar = 0;
   float prev = nan_value;
-  // Each lane's cheapest plane so far (strictly cheaper replaces it, so the earliest of equal
-  // ones stays): its cost, its group's last event and whether its planar references go left.
-  __m512 best_cost = _mm512_set1_ps(std::numeric_limits<float>::infinity());
-  __m512i best_at = _mm512_setzero_si512();
-  __mmask16 best_planar = 0;
-  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  // Each lane's cheapest plane so far: its cost, its group's last event and whether its planar
+  // references go left.
+  LaneBests16 bests(best.cost);
   for (std::size_t i = 0; i < size; i += 16) {
     const std::size_t rest = size - i;
     const __mmask16 live = rest >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << rest) - 1u);
@@ -1265,10 +1301,7 @@ template <int K>
                             _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(right, planar)),
                             _mm512_test_epi32_mask(planar, planar), planar_left);
       }
-      const __mmask16 better = inside & _mm512_cmp_ps_mask(cost, best_cost, _CMP_LT_OQ);
-      best_cost = _mm512_mask_mov_ps(best_cost, better, cost);
-      best_at = _mm512_mask_mov_epi32(best_at, better, _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(i)), lane));
-      best_planar = static_cast<__mmask16>((best_planar & ~better) | (planar_left & better));
+      bests.update(inside, i, cost, planar_left);
     }
     // The open group's counts from the masks, not from gl and gp: the next 16 need not wait
     // for this one's running maximum.
@@ -1283,14 +1316,7 @@ template <int K>
     if (rest > 16) prev = ev[i + 15].pos;
   }
   // The cheapest plane, the earliest of equal ones: each lane holds the earliest of its own.
-  const int j = cheapest_lane(best_cost, best_at, best.cost);
-  if (j >= 0) {
-    alignas(64) float costs[16];
-    alignas(64) int at[16];
-    _mm512_store_ps(costs, best_cost);
-    _mm512_store_si512(at, best_at);
-    best = SplitChoice{axis, group_pos(ev, static_cast<std::size_t>(at[j])), ((best_planar >> j) & 1u) != 0, costs[j]};
-  }
+  bests.take(best.cost, axis, [ev](std::size_t k) { return group_pos(ev, k); }, best);
   return best;
 }
 
@@ -1618,10 +1644,7 @@ template <int W>
     return static_cast<__mmask16>(static_cast<unsigned>(low) | (static_cast<unsigned>(high) << 8));
   };
   // Each lane's cheapest plane below the split so far (as in best_on_axis_avx512).
-  __m512 best_cost = _mm512_set1_ps(split.cost);
-  __m512i best_at = _mm512_setzero_si512();
-  __mmask16 best_planar = 0;
-  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  LaneBests16 bests(split.cost);
   for (std::size_t i = from;; i += 16) {  // the padding at +inf ends it
     const __m512 pos = _mm512_loadu_ps(planes.pos.data() + i);
     const __mmask16 in_range = _mm512_cmp_ps_mask(pos, v_hi, _CMP_LT_OQ);
@@ -1652,22 +1675,12 @@ template <int W>
             counts_as_floats(_mm512_add_epi64(right_low, planar_low), _mm512_add_epi64(right_high, planar_high)),
             has_planar, planar_left);
       }
-      const __mmask16 better = valid & _mm512_cmp_ps_mask(best, best_cost, _CMP_LT_OQ);
-      best_cost = _mm512_mask_mov_ps(best_cost, better, best);
-      best_at = _mm512_mask_mov_epi32(best_at, better, _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(i)), lane));
-      best_planar = static_cast<__mmask16>((best_planar & ~better) | (planar_left & better));
+      bests.update(valid, i, best, planar_left);
     }
     if (in_range != 0xFFFF) break;
   }
-  const int j = cheapest_lane(best_cost, best_at, split.cost);
-  if (j >= 0) {
-    alignas(64) float costs[16];
-    alignas(64) int at[16];
-    _mm512_store_ps(costs, best_cost);
-    _mm512_store_si512(at, best_at);
-    chosen = static_cast<std::size_t>(at[j]);
-    split = SplitChoice{axis, planes.pos[chosen], ((best_planar >> j) & 1u) != 0, costs[j]};
-  }
+  const std::size_t taken = bests.take(split.cost, axis, [&planes](std::size_t k) { return planes.pos[k]; }, split);
+  if (taken != SIZE_MAX) chosen = taken;
 }
 
 // scan_planes_avx512 for CPUs with AVX2 but without AVX-512 VPOPCNTDQ: the popcounts of 4
