@@ -415,9 +415,9 @@ struct WatertightTest {
   }
 };
 
-/// Lane i of a packet as a one-ray packet.
+/// Lane i of a packet as a one-ray packet. Always inlined, as clip_to_box is.
 template <int N>
-inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
+[[gnu::always_inline]] inline RayPacket<1> lane_ray(const RayPacket<N>& p, int i) {
   RayPacket<1> r;
   r.org = PacketVec3<1>{p.org[0].lane(i), p.org[1].lane(i), p.org[2].lane(i)};
   r.dir = PacketVec3<1>{p.dir[0].lane(i), p.dir[1].lane(i), p.dir[2].lane(i)};
@@ -493,9 +493,14 @@ inline void prefetch_leaf(const TriRecord* leaf, std::uint32_t count, bool boxed
 /// Narrows each lane's [near, far] to the part of its ray inside the box [lo, hi] (the slab
 /// test), for rays that run towards -a where bit a of `sign_bits` is set. A slab distance of
 /// NaN (an origin on a face, a ray parallel to it) leaves the interval as it is.
+/// Always inlined: GCC 12 kept it out of line in most walks, and a call there (at every boxed
+/// leaf) makes every vector register the walk holds caller-saved; inlined, 16-wide primary rays
+/// 1.00-1.06x (median 1.04) and frames 1.01-1.05x on the six large views, the same hits
+/// (tests/bench/results/inline_clip_zen5.md).
 template <int N>
-inline void clip_to_box(const glm::vec3& lo, const glm::vec3& hi, std::uint32_t sign_bits, const RayPacket<N>& ray,
-                        const PacketVec3<N>& inv_dir, vfloat<N>& near, vfloat<N>& far) {
+[[gnu::always_inline]] inline void clip_to_box(const glm::vec3& lo, const glm::vec3& hi, std::uint32_t sign_bits,
+                                               const RayPacket<N>& ray, const PacketVec3<N>& inv_dir, vfloat<N>& near,
+                                               vfloat<N>& far) {
   for (int axis = 0; axis < 3; ++axis) {
     const bool negative = (sign_bits >> axis) & 1u;
     const vfloat<N> t_entry = (vfloat<N>(negative ? hi[axis] : lo[axis]) - ray.org[axis]) * inv_dir[axis];
