@@ -757,9 +757,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
         } else {
           // The leaf's tests update a local copy of the hits, which GCC 12 holds in registers
           // through the leaf; on `hit` itself it loaded the hits' t and ids from memory again
-          // at every triangle (clang 14 held them in registers either way). 16-wide primary
-          // rays 1.02x and frames 1.03x on the six large views, the occlusion walks unchanged
-          // (tests/bench/results/walk_local_hit_zen5.md, walk_loop_over_local_zen5.md).
+          // at every triangle (clang 14 held them in registers either way). The same hits; the
+          // occlusion walks compile to the same code. 16-wide primary rays median 1.00x over
+          // the six large views, spd-tree 1.07x, within this VM's noise elsewhere
+          // (tests/bench/results/local_hit_zen5.md; trace_experiments.md, session 55).
           HitPacket<N> local = hit;
           for (std::uint32_t i = 0; i < count; ++i) {
             if constexpr (kWalkStats) stats.tests(1, static_cast<std::uint32_t>(std::popcount(bits(active))));
