@@ -769,6 +769,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
           // occlusion walks compile to the same code. 16-wide primary rays median 1.00x over
           // the six large views, spd-tree 1.07x, within this VM's noise elsewhere
           // (tests/bench/results/local_hit_zen5.md; trace_experiments.md, session 55).
+          // For packets `hit` is already the walk's local copy, so this copies one local into
+          // another; testing on `hit` there instead measured no gain (primary rays median 1.00x,
+          // pop_reach_hoist_zen5.md; trace_experiments.md, session 56), and single rays with the
+          // watertight test still need this copy.
           HitPacket<N> local = hit;
           for (std::uint32_t i = 0; i < count; ++i) {
             if constexpr (kWalkStats) stats.tests(1, static_cast<std::uint32_t>(std::popcount(bits(active))));
