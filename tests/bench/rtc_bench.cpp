@@ -449,6 +449,14 @@ int run(int argc, char** argv) {
   app.add_option("--ab-kd-mask-below", ab_mask_below, ab_help("mask-below"))->check(CLI::Range(-1, 256));
   int ab_max_depth = -1;
   app.add_option("--ab-kd-max-depth", ab_max_depth, ab_help("max-depth"))->check(CLI::Range(0, 60));
+  float ab_traversal_cost = -1.0f;
+  app.add_option("--ab-kd-traversal-cost", ab_traversal_cost, ab_help("traversal-cost"))
+      ->check(CLI::PositiveNumber);
+  float ab_intersection_cost = -1.0f;
+  app.add_option("--ab-kd-intersection-cost", ab_intersection_cost, ab_help("intersection-cost"))
+      ->check(CLI::PositiveNumber);
+  float ab_empty_bonus = -1.0f;
+  app.add_option("--ab-kd-empty-bonus", ab_empty_bonus, ab_help("empty-bonus"))->check(CLI::Range(0.0f, 0.99f));
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
   int width = 0, height = 0;
@@ -513,7 +521,8 @@ int run(int argc, char** argv) {
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =
       ab_leaf_box_saving >= 0.0f || ab_empty_cut >= 0.0f || ab_exact_below >= 0 || ab_binned_root_above >= 0 ||
-      ab_footprint >= 0.0f || ab_mask_below >= -1 || ab_max_depth >= 0;
+      ab_footprint >= 0.0f || ab_mask_below >= -1 || ab_max_depth >= 0 || ab_traversal_cost > 0.0f ||
+      ab_intersection_cost > 0.0f || ab_empty_bonus >= 0.0f;
   if (ab_tree &&
       std::none_of(modes.begin(), modes.end(), [](const std::string& m) { return m == "primary" || m == "shadow"; })) {
     throw rtc::Error("--ab-kd-* options time primary and shadow rays: give --mode primary or --mode shadow");
@@ -622,6 +631,9 @@ int run(int argc, char** argv) {
   if (ab_footprint >= 0.0f) ab_options.footprint_pixels = ab_footprint;
   if (ab_mask_below >= -1) ab_options.mask_below = ab_mask_below;
   if (ab_max_depth >= 0) ab_options.max_depth = ab_max_depth;
+  if (ab_traversal_cost > 0.0f) ab_options.traversal_cost = ab_traversal_cost;
+  if (ab_intersection_cost > 0.0f) ab_options.intersection_cost = ab_intersection_cost;
+  if (ab_empty_bonus >= 0.0f) ab_options.empty_bonus = ab_empty_bonus;
   if (ab_tree) {
     fs_ab = rtc::build_frame_state(scene, scene.animation.frame_begin, scene.settings, ab_options);
   }
@@ -662,6 +674,7 @@ int run(int argc, char** argv) {
                          {"kd_intersection_cost", kd_options.intersection_cost},
                          {"kd_mask_below", kd_options.effective_mask_below()},
                          {"kd_empty_cut", kd_options.empty_cut},
+                         {"kd_empty_bonus", kd_options.empty_bonus},
                          {"kd_exact_below", kd_options.exact_below},
                          {"kd_binned_root_above", kd_options.binned_root_above},
                          {"kd_blocks", kd.blocks},
@@ -886,6 +899,9 @@ int run(int argc, char** argv) {
                      {"kd_footprint", ab_options.footprint_pixels},
                      {"kd_mask_below", ab_options.effective_mask_below()},
                      {"kd_max_depth_limit", ab_options.max_depth},
+                     {"kd_traversal_cost", ab_options.traversal_cost},
+                     {"kd_intersection_cost", ab_options.intersection_cost},
+                     {"kd_empty_bonus", ab_options.empty_bonus},
                      {"kd_nodes", kd_ab.nodes},
                      {"kd_max_depth", kd_ab.max_depth},
                      {"kd_tris_per_leaf", kd_ab.mean_tris_per_leaf},

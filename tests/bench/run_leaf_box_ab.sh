@@ -5,20 +5,23 @@
 # is binned (KdBuildOptions::binned_root_above), with AB_OPTION=kd-footprint the pixels the view-aware SAH adds
 # to a small node's lengths (KdBuildOptions::footprint_pixels), with AB_OPTION=kd-mask-below
 # the size of the subtrees built with bit masks (KdBuildOptions::mask_below), or with
-# AB_OPTION=kd-max-depth the depth limit (KdBuildOptions::max_depth), at two values on
+# AB_OPTION=kd-max-depth the depth limit (KdBuildOptions::max_depth), or with
+# AB_OPTION=kd-traversal-cost, kd-intersection-cost or kd-empty-bonus the SAH's K_T, K_I or
+# empty-space bonus (KdBuildOptions::traversal_cost, intersection_cost, empty_bonus), at two values on
 # every view of the shared scene pack, in one process per view: rtc-bench builds a tree with
 # each value and times both trees' packets and single rays rep by rep (--ab-kd-leaf-box-saving /
 # --ab-kd-empty-cut / --ab-kd-exact-below / --ab-kd-binned-root-above / --ab-kd-footprint / --ab-kd-mask-below /
-# --ab-kd-max-depth), so a slow
+# --ab-kd-max-depth / --ab-kd-traversal-cost / --ab-kd-intersection-cost / --ab-kd-empty-bonus), so a slow
 # spell of the machine falls on both alike, and checks that both trees give the same answers.
 # Writes tests/bench/results/NAME.txt (rtc-bench's JSON lines) and NAME.md
 # (tests/bench/summarize_leaf_box_ab.py: per view and mode, the second value's speed over the
 # first's, paired rep by rep).
 # Usage: tests/bench/run_leaf_box_ab.sh NAME [SCENES_DIR] [THREADS] [REPS] [A] [B]
 #   defaults: ../shared/scenes, 1 thread, 15 reps, A = 0 (no boxes), B = 2 (the default); with
-#   AB_OPTION=kd-empty-cut, kd-exact-below, kd-binned-root-above, kd-footprint, kd-mask-below or
-#   kd-max-depth A and B are required (e.g. 2 0.2: off against the default; 4096 1024; 4096 1024;
-#   0 2; 64 128; 0 40)
+#   AB_OPTION=kd-empty-cut, kd-exact-below, kd-binned-root-above, kd-footprint, kd-mask-below,
+#   kd-max-depth, kd-traversal-cost, kd-intersection-cost or kd-empty-bonus A and B are required
+#   (e.g. 2 0.2: off against the default; 4096 1024; 4096 1024; 0 2; 64 128; 0 40; 3 2.5; 1 1.5;
+#   0.2 0.1)
 # RTC_BENCH: the rtc-bench binary (default build/release/tests/bench/rtc-bench); AB_ISA: the
 # kernel ISA (default: rtc-bench's, the widest the CPU runs).
 set -euo pipefail
@@ -31,11 +34,13 @@ reps=${4:-15}
 option=${AB_OPTION:-kd-leaf-box-saving}
 case "$option" in
   kd-leaf-box-saving) a=${5:-0} b=${6:-2} ;;
-  kd-empty-cut | kd-exact-below | kd-binned-root-above | kd-footprint | kd-mask-below | kd-max-depth)
+  kd-empty-cut | kd-exact-below | kd-binned-root-above | kd-footprint | kd-mask-below | kd-max-depth | \
+    kd-traversal-cost | kd-intersection-cost | kd-empty-bonus)
     [ $# -ge 6 ] || { echo "run_leaf_box_ab: AB_OPTION=$option needs A and B" >&2; exit 2; }
     a=$5 b=$6 ;;
   *) echo "run_leaf_box_ab: AB_OPTION must be kd-leaf-box-saving, kd-empty-cut, kd-exact-below," \
-      "kd-binned-root-above, kd-footprint, kd-mask-below or kd-max-depth, got $option" >&2
+      "kd-binned-root-above, kd-footprint, kd-mask-below, kd-max-depth, kd-traversal-cost," \
+      "kd-intersection-cost or kd-empty-bonus, got $option" >&2
     exit 2 ;;
 esac
 bench=${RTC_BENCH:-build/release/tests/bench/rtc-bench}

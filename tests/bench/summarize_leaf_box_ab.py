@@ -2,8 +2,8 @@
 """Tabulates run_leaf_box_ab.sh: per view and mode, both trees' throughput and the second
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
 --ab-kd-leaf-box-saving, --ab-kd-empty-cut, --ab-kd-exact-below, --ab-kd-binned-root-above,
---ab-kd-footprint or --ab-kd-mask-below,
-whichever the two trees differ in), with the medians over the views.
+--ab-kd-footprint, --ab-kd-mask-below, --ab-kd-max-depth, --ab-kd-traversal-cost,
+--ab-kd-intersection-cost or --ab-kd-empty-bonus, whichever the two trees differ in), with the medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
 import statistics
@@ -29,6 +29,12 @@ def main() -> None:
         key, title = "kd_binned_root_above", "Root binned above"
     elif differs("kd_max_depth_limit"):
         key, title = "kd_max_depth_limit", "Depth limit (0: 8 + 1.3 log2 N)"
+    elif differs("kd_traversal_cost"):
+        key, title = "kd_traversal_cost", "SAH traversal cost K_T"
+    elif differs("kd_intersection_cost"):
+        key, title = "kd_intersection_cost", "SAH intersection cost K_I"
+    elif differs("kd_empty_bonus"):
+        key, title = "kd_empty_bonus", "SAH empty-space bonus"
     elif differs("kd_empty_cut"):
         key, title = "kd_empty_cut", "Empty gaps cut without the sweep"
     else:
@@ -54,7 +60,8 @@ def main() -> None:
         ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
         sizes = f"{r[size]:,} → {ab[size]:,}" if cut else f"{ab[size]:,}"
         if key in ("kd_exact_below", "kd_binned_root_above", "kd_footprint", "kd_mask_below",
-                   "kd_max_depth_limit") and "kd_sah_cost" in ab:
+                   "kd_max_depth_limit", "kd_traversal_cost", "kd_intersection_cost",
+                   "kd_empty_bonus") and "kd_sah_cost" in ab:
             sizes += f" (SAH {r['kd_sah_cost']:.2f} → {ab['kd_sah_cost']:.2f})"
         print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {sizes} | "
               f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
