@@ -15,8 +15,9 @@ too) are finite and the summary tabulates them; --ab-kd-binned-root-above (the b
 one block against its root binned, with the exact sweep below 65,536: 1 block against 2, which
 may be the same tree, the same answers); and --ab-kd-max-depth (the default depth limit
 against 10), --ab-kd-traversal-cost (3 against 6), --ab-kd-intersection-cost (1 against 2) and
---ab-kd-empty-bonus (0.25 against 0), each a different tree with the same answers. Last, --ab-shadow-order (far against dense: the same answers) and auto's tally in
-shadow mode (dense and far timed, near not; "none" with no lights).
+--ab-kd-empty-bonus (0.25 against 0), each a different tree with the same answers. Last,
+--ab-shadow-order (far against dense: the same answers) and auto's tally in shadow mode (dense
+and far timed, near not; "none" with no lights).
 
 usage: check_leaf_box_ab.py RTC_BENCH
 """

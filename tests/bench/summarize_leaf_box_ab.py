@@ -3,7 +3,8 @@
 tree's speed over the first's, paired rep by rep within one process (rtc-bench
 --ab-kd-leaf-box-saving, --ab-kd-empty-cut, --ab-kd-exact-below, --ab-kd-binned-root-above,
 --ab-kd-footprint, --ab-kd-mask-below, --ab-kd-max-depth, --ab-kd-traversal-cost,
---ab-kd-intersection-cost or --ab-kd-empty-bonus, whichever the two trees differ in), with the medians over the views.
+--ab-kd-intersection-cost or --ab-kd-empty-bonus, whichever the two trees differ in), with the
+medians over the views.
 Usage: summarize_leaf_box_ab.py RESULTS.txt "COMMAND"."""
 import json
 import statistics
@@ -19,26 +20,18 @@ def main() -> None:
     def differs(k):
         return k in first and first.get(k) != first["ab"].get(k, first.get(k))
 
-    if differs("kd_footprint"):
-        key, title = "kd_footprint", "View-aware SAH (packet footprint, pixels)"
-    elif differs("kd_mask_below"):
-        key, title = "kd_mask_below", "Bit masks (not clipped) below"
-    elif differs("kd_exact_below"):
-        key, title = "kd_exact_below", "Exact sweep below"
-    elif differs("kd_binned_root_above"):
-        key, title = "kd_binned_root_above", "Root binned above"
-    elif differs("kd_max_depth_limit"):
-        key, title = "kd_max_depth_limit", "Depth limit (0: 8 + 1.3 log2 N)"
-    elif differs("kd_traversal_cost"):
-        key, title = "kd_traversal_cost", "SAH traversal cost K_T"
-    elif differs("kd_intersection_cost"):
-        key, title = "kd_intersection_cost", "SAH intersection cost K_I"
-    elif differs("kd_empty_bonus"):
-        key, title = "kd_empty_bonus", "SAH empty-space bonus"
-    elif differs("kd_empty_cut"):
-        key, title = "kd_empty_cut", "Empty gaps cut without the sweep"
-    else:
-        key, title = "kd_leaf_box_saving", "Leaf boxes"
+    # The option the trees differ in, by the first key of this list that differs, and whether its
+    # rows show both trees' SAH costs; no key differing means leaf boxes.
+    options = [("kd_footprint", "View-aware SAH (packet footprint, pixels)", True),
+               ("kd_mask_below", "Bit masks (not clipped) below", True),
+               ("kd_exact_below", "Exact sweep below", True),
+               ("kd_binned_root_above", "Root binned above", True),
+               ("kd_max_depth_limit", "Depth limit (0: 8 + 1.3 log2 N)", True),
+               ("kd_traversal_cost", "SAH traversal cost K_T", True),
+               ("kd_intersection_cost", "SAH intersection cost K_I", True),
+               ("kd_empty_bonus", "SAH empty-space bonus", True),
+               ("kd_empty_cut", "Empty gaps cut without the sweep", False)]
+    key, title, show_sah = next((o for o in options if differs(o[0])), ("kd_leaf_box_saving", "Leaf boxes", False))
     cut = key != "kd_leaf_box_saving"  # trees of different shapes: their node counts
     size, size_label = ("kd_nodes", "nodes") if cut else ("kd_leaf_boxes", "boxes")
     a, b = first[key], first["ab"][key]
@@ -59,9 +52,7 @@ def main() -> None:
         ratios[r["mode"]][0].append(ab["speed_vs_first_paired"])
         ratios[r["mode"]][1].append(ab["speed_vs_first_single_paired"])
         sizes = f"{r[size]:,} → {ab[size]:,}" if cut else f"{ab[size]:,}"
-        if key in ("kd_exact_below", "kd_binned_root_above", "kd_footprint", "kd_mask_below",
-                   "kd_max_depth_limit", "kd_traversal_cost", "kd_intersection_cost",
-                   "kd_empty_bonus") and "kd_sah_cost" in ab:
+        if show_sah and "kd_sah_cost" in ab:
             sizes += f" (SAH {r['kd_sah_cost']:.2f} → {ab['kd_sah_cost']:.2f})"
         print(f"| {r['scene']} | {r['triangles']:,} | {r['mode']} | {sizes} | "
               f"{r['mrays_per_s']:.2f} | {ab['mrays_per_s']:.2f} | **{ab['speed_vs_first_paired']:.3f}** | "
