@@ -167,8 +167,10 @@ void put(ByteWriter& w, const FrameSettings& m) {
   w.u8(m.compression);
   w.u8(m.channels);
 }
+// The fields TileAssign and TileResult begin with, in this order:
 // sequence u32 | frame i32 | tile u32 | x u32 | y u32 | width u32 | height u32
-void put(ByteWriter& w, const TileAssign& m) {
+template <typename Tile>
+void put_tile_head(ByteWriter& w, const Tile& m) {
   w.u32(m.sequence);
   w.i32(m.frame);
   w.u32(m.tile);
@@ -177,17 +179,23 @@ void put(ByteWriter& w, const TileAssign& m) {
   w.u32(m.width);
   w.u32(m.height);
 }
+template <typename Tile>
+void get_tile_head(ByteReader& r, Tile& m) {
+  m.sequence = r.u32("sequence");
+  m.frame = r.i32("frame");
+  m.tile = r.u32("tile");
+  m.x = r.u32("x");
+  m.y = r.u32("y");
+  m.width = r.u32("width");
+  m.height = r.u32("height");
+}
+// sequence u32 | frame i32 | tile u32 | x u32 | y u32 | width u32 | height u32
+void put(ByteWriter& w, const TileAssign& m) { put_tile_head(w, m); }
 // sequence u32 | frame i32 | tile u32 | x, y, width, height u32 | wire_format, compression,
 // channels u8 | raw_size u32 | render_us u32 | primary_rays, shadow_rays, reflection_rays u64 |
 // pixels blob
 void put(ByteWriter& w, const TileResult& m) {
-  w.u32(m.sequence);
-  w.i32(m.frame);
-  w.u32(m.tile);
-  w.u32(m.x);
-  w.u32(m.y);
-  w.u32(m.width);
-  w.u32(m.height);
+  put_tile_head(w, m);
   w.u8(m.wire_format);
   w.u8(m.compression);
   w.u8(m.channels);
@@ -320,23 +328,9 @@ void get(ByteReader& r, FrameSettings& m) {
   m.compression = r.u8("compression");
   m.channels = r.u8("channels");
 }
-void get(ByteReader& r, TileAssign& m) {
-  m.sequence = r.u32("sequence");
-  m.frame = r.i32("frame");
-  m.tile = r.u32("tile");
-  m.x = r.u32("x");
-  m.y = r.u32("y");
-  m.width = r.u32("width");
-  m.height = r.u32("height");
-}
+void get(ByteReader& r, TileAssign& m) { get_tile_head(r, m); }
 void get(ByteReader& r, TileResult& m) {
-  m.sequence = r.u32("sequence");
-  m.frame = r.i32("frame");
-  m.tile = r.u32("tile");
-  m.x = r.u32("x");
-  m.y = r.u32("y");
-  m.width = r.u32("width");
-  m.height = r.u32("height");
+  get_tile_head(r, m);
   m.wire_format = r.u8("wire_format");
   m.compression = r.u8("compression");
   m.channels = r.u8("channels");

@@ -119,17 +119,22 @@ void Connection::start(MessageHandler on_message, CloseHandler on_close) {
   read_header();
 }
 
+bool Connection::read_returned(const asio::error_code& ec) {
+  reading_ = false;
+  if (closed_) return false;
+  if (closing_after_flush_) {
+    continue_drain(ec);  // what arrived is discarded; an error or the peer's close ends it
+    return false;
+  }
+  return true;
+}
+
 void Connection::read_header() {
   if (closed_) return;
   auto self = shared_from_this();
   reading_ = true;
   auto on_header = [this, self](const asio::error_code& ec, std::size_t) {
-    reading_ = false;
-    if (closed_) return;
-    if (closing_after_flush_) {
-      continue_drain(ec);
-      return;
-    }
+    if (!read_returned(ec)) return;
     if (ec) {
       finish(is_end_of_stream(ec) ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
       return;
@@ -163,12 +168,7 @@ void Connection::read_payload(protocol::Header header) {
   auto self = shared_from_this();
   reading_ = true;
   auto on_payload = [this, self, header](const asio::error_code& ec, std::size_t) {
-    reading_ = false;
-    if (closed_) return;
-    if (closing_after_flush_) {
-      continue_drain(ec);
-      return;
-    }
+    if (!read_returned(ec)) return;
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +

@@ -114,6 +114,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
   void read_header();
   void read_payload(protocol::Header header);
+  /// The start of a message read's callback: false when the callback has nothing more to do,
+  /// because the connection is closed or is draining before a close (close_after_flush), which
+  /// then takes the read's result.
+  bool read_returned(const asio::error_code& ec);
   void write_next();
   void drain();
   void continue_drain(const asio::error_code& ec);
