@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "common/base/cli_checks.h"
 #include "common/base/error.h"
 #include "common/base/frame_range.h"
 #include "common/base/log.h"
@@ -34,6 +35,7 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   auto* frames_opt = app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
   app.add_option("--loop", o.loop_seconds, "render the frames over and over for this many seconds (a frame-rate run)")
+      ->check(rtc::kNotNan)
       ->check(CLI::Range(0.001, 1e9))
       ->excludes(frames_opt);
   app.add_option("--out", o.out_pattern,
@@ -46,6 +48,7 @@ int run(int argc, char** argv) {
   app.add_option("--link-mbps", o.link_mbps, "the master's link rate in Mbit/s (e.g. 100 for Fast Ethernet) for the "
                                             "bandwidth-limited frame rate, which counts the 94.1% of it TCP over "
                                             "Ethernet leaves for messages (default: measured on the first worker's connection)")
+      ->check(rtc::kNotNan)
       ->check(CLI::Range(0.001, 1e9));
   app.add_option("--token-file", token_file, "file holding the shared token workers must prove (HMAC, never sent)");
   app.add_option("--tls-cert", o.tls_cert, "PEM certificate chain: every connection uses TLS (workers need --tls-ca)")
@@ -134,7 +137,8 @@ int run(int argc, char** argv) {
   // Three heartbeats fit in the timeout, so one late answer does not drop a worker.
   o.heartbeat_ms = std::min(o.heartbeat_ms, o.heartbeat_timeout_ms / 3);
   std::optional<rtc::FrameRange> requested;
-  if (!frames_text.empty()) requested = rtc::parse_frame_range(frames_text);
+  if (app.count("--frames") > 0) requested = rtc::parse_frame_range(frames_text);  // "" is an error too
+  if (app.count("--out") > 0 && o.out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
 
   const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
   if (scene.width > 32768 || scene.height > 32768) {
@@ -143,6 +147,8 @@ int run(int argc, char** argv) {
                      " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
   }
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
+  rtc::check_cameras(scene, frames.first, frames.last,
+                     scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
@@ -150,13 +156,7 @@ int run(int argc, char** argv) {
   if (app.count("--tile") == 0 && o.multiple_frames && rtc::temporal_for(scene, o.temporal)) {
     o.tile_size = rtc::kTemporalTileSize;
   }
-  if (!o.out_pattern.empty()) {
-    const std::filesystem::path first_out(rtc::expand_frame_pattern(o.out_pattern, frames.first, o.multiple_frames));
-    const std::filesystem::path out_dir = first_out.parent_path().empty() ? "." : first_out.parent_path();
-    if (!std::filesystem::is_directory(out_dir)) {
-      throw rtc::Error("--out: " + first_out.string() + ": folder " + out_dir.string() + " does not exist");
-    }
-  }
+  if (!o.out_pattern.empty()) (void)rtc::check_output_pattern(o.out_pattern, frames.first, o.multiple_frames);
   return rtc::run_master(scene, o);
 }
 

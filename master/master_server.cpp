@@ -536,6 +536,7 @@ class Master {
       w.pending_marks.erase(mit);
     }
     if (outcome == TileOutcome::Accepted) {
+      worker_failures_in_a_row_ = 0;
       OpenFrame& f = fit->second;
       f.image.blit(tile_, static_cast<int>(r.x), static_cast<int>(r.y));
       FrameStats& s = f.stats;
@@ -581,6 +582,15 @@ class Master {
   void handle(Worker& w, proto::ErrorMessage&& m, std::size_t) {
     spdlog::error("{} reports an error (code {}): {}", w.describe(), static_cast<int>(m.code), m.text);
     w.conn->close("it reported an error: " + m.text);
+    // A worker that fails to render or to decode the scene comes back and is handed the same
+    // work: an error every worker hits (a frame's camera a worker refuses, a scene too big for
+    // them) would otherwise cycle until someone kills the master.
+    if (m.code == proto::ErrorCode::Internal || m.code == proto::ErrorCode::SceneInvalid) {
+      if (++worker_failures_in_a_row_ >= kWorkerFailuresToGiveUp) {
+        fatal(std::to_string(worker_failures_in_a_row_) + " worker errors in a row and no tile finished in between; " +
+              "the last, from " + w.describe() + ": " + m.text);
+      }
+    }
   }
 
   void handle(Worker& w, proto::Goodbye&& m, std::size_t) {
@@ -998,6 +1008,10 @@ class Master {
   bool stopping_ = false;
   bool done_ = false;
   std::string fatal_error_;
+  /// Render or scene errors reported by workers since the last tile accepted (fatal at
+  /// kWorkerFailuresToGiveUp: retrying such work does not help).
+  int worker_failures_in_a_row_ = 0;
+  static constexpr int kWorkerFailuresToGiveUp = 8;
   std::unique_ptr<FrameWriter> writer_;
   std::ofstream stats_file_;
   RunAccumulator finished_;  // every frame written, for the summary

@@ -79,7 +79,8 @@ int run(int argc, char** argv) {
     }
   }
   std::optional<rtc::FrameRange> requested_frames;
-  if (!frames_text.empty()) requested_frames = rtc::parse_frame_range(frames_text);
+  if (app.count("--frames") > 0) requested_frames = rtc::parse_frame_range(frames_text);  // "" is an error too
+  if (app.count("--out") > 0 && out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -90,16 +91,14 @@ int run(int argc, char** argv) {
 
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
+  rtc::check_cameras(scene, frames.first, frames.last,
+                     scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);
   if (out_pattern.empty()) {
     out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");
     std::filesystem::create_directories("out");
   }
-  // A bad pattern or a missing output folder is reported before anything is rendered.
-  const std::filesystem::path first_out(rtc::expand_frame_pattern(out_pattern, frames.first, multiple));
-  const std::filesystem::path out_dir = first_out.parent_path().empty() ? "." : first_out.parent_path();
-  if (!std::filesystem::is_directory(out_dir)) {
-    throw rtc::Error("--out: " + first_out.string() + ": folder " + out_dir.string() + " does not exist");
-  }
+  // A bad pattern, extension or output folder is reported before anything is rendered.
+  (void)rtc::check_output_pattern(out_pattern, frames.first, multiple);
 
   rtc::RenderOptions options;
   options.isa = isa;

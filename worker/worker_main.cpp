@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "common/base/cli_checks.h"
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
@@ -32,6 +33,7 @@ int run(int argc, char** argv) {
   app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");
   app.add_option("--retry-seconds", o.retry_seconds,
                  "give up when the master has been unreachable this long (0: retry for ever)")
+      ->check(rtc::kNotNan)
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   app.add_flag("--stay", o.stay, "when the master says goodbye, wait for the next one instead of exiting");

@@ -3,9 +3,20 @@
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 
+#include <algorithm>
+#include <iterator>
+#include <string>
+
+#include "common/base/error.h"
+
 namespace rtc {
 
 void init_logging(const std::string& level) {
+  // spdlog::level::from_str reads any other word as "off", which silenced a run's whole log.
+  static constexpr const char* kLevels[] = {"trace", "debug", "info", "warn", "error", "off"};
+  if (std::find(std::begin(kLevels), std::end(kLevels), level) == std::end(kLevels)) {
+    throw Error("--log-level: expected trace, debug, info, warn, error or off, got \"" + level + "\"");
+  }
   auto logger = spdlog::stderr_color_mt("rtc");
   logger->set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
   logger->set_level(spdlog::level::from_str(level));

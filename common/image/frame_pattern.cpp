@@ -1,8 +1,14 @@
 // Output file names for frame sequences: "f_####.exr", "f_%04d.exr" or an inserted "_NNNN".
 #include "common/image/image.h"
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstddef>
+#include <cstring>
+#include <filesystem>
 #include <string>
+#include <system_error>
 
 #include <fmt/format.h>
 
@@ -90,6 +96,26 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
     out.insert(insert_at, fmt::format("_{}", zero_padded(frame, kInsertedWidth)));
   }
   return out;
+}
+
+std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames) {
+  const std::filesystem::path first(expand_frame_pattern(pattern, first_frame, multiple_frames));
+  const auto bad = [&](const std::string& reason) { return Error("--out: " + first.string() + ": " + reason); };
+  const std::filesystem::path folder = first.parent_path().empty() ? "." : first.parent_path();
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw bad(std::filesystem::exists(folder, ec) ? "'" + folder.string() + "' is not a folder"
+                                                  : "folder " + folder.string() + " does not exist");
+  }
+  if (::access(folder.c_str(), W_OK) != 0) {
+    throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
+  }
+  if (std::filesystem::is_directory(first, ec)) throw bad("is a folder");
+  if (!image_file_kind(first)) {
+    throw bad("unsupported extension '" + first.extension().string() +
+              "' (use .exr, .tif, .tiff, .png, .jpg, .jpeg or .ppm)");
+  }
+  return first;
 }
 
 }  // namespace rtc

@@ -117,6 +117,11 @@ std::uint8_t linear_to_unorm8(float value);
 /// '%' placeholders, any other '%' sequence, or a negative frame.
 std::string expand_frame_pattern(const std::string& pattern, int frame, bool multiple_frames);
 
+/// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, an
+/// extension write_image does not know, a folder that does not exist, or a first frame's name
+/// that is a folder throw rtc::Error ("--out: <name>: <reason>"). Returns the first frame's name.
+std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames);
+
 /// 64-bit FNV-1a over the width, height, which channels are present and the bits of every
 /// float (little-endian), as 16 lowercase hex digits: equal hashes mean equal frames bit for
 /// bit (-0 and +0 differ, NaN payloads count). Same result on every machine.

@@ -30,6 +30,7 @@ MeshFile load_mesh_file(const std::filesystem::path& path, const MeshLoadOptions
   }
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw_at(file, 0, "file not found");
+  if (std::filesystem::is_directory(path, ec)) throw_at(file, 0, "is a folder, not a mesh or scene file");
   if (ext == ".obj") return load_obj(path);
   if (ext == ".ply") return load_ply(path);
   if (ext == ".gltf" || ext == ".glb") return load_gltf(path);

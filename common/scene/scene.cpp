@@ -3,8 +3,10 @@
 // dispatches per CPU, and every worker evaluates poses itself.
 #include "common/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -126,24 +128,48 @@ Aabb Scene::bounds() const {
   return box;
 }
 
-FramePose pose_at(const Scene& scene, int frame) {
-  FramePose pose;
-  pose.frame = frame;
+Camera camera_at(const Scene& scene, int frame) {
   const Animation& anim = scene.animation;
-
-  pose.camera = scene.camera;
+  Camera camera = scene.camera;
   if (!anim.camera.empty()) {
     std::size_t i0 = 0, i1 = 0;
     double t = 0.0;
     bracket(anim.camera, frame, i0, i1, t);
     const Camera& a = anim.camera[i0].camera;
     const Camera& b = anim.camera[i1].camera;
-    pose.camera.eye = glm::vec3(mix3(a.eye, b.eye, t));
-    pose.camera.look_at = glm::vec3(mix3(a.look_at, b.look_at, t));
-    pose.camera.up = glm::vec3(mix3(a.up, b.up, t));
-    pose.camera.vfov_deg =
-        static_cast<float>(double(a.vfov_deg) * (1.0 - t) + double(b.vfov_deg) * t);
+    camera.eye = glm::vec3(mix3(a.eye, b.eye, t));
+    camera.look_at = glm::vec3(mix3(a.look_at, b.look_at, t));
+    camera.up = glm::vec3(mix3(a.up, b.up, t));
+    camera.vfov_deg = static_cast<float>(double(a.vfov_deg) * (1.0 - t) + double(b.vfov_deg) * t);
   }
+  return camera;
+}
+
+void check_cameras(const Scene& scene, int first, int last, const std::string& scene_name) {
+  const auto check = [&](int frame) {
+    try {
+      (void)CameraRays(camera_at(scene, frame), scene.width, scene.height);
+    } catch (const Error& e) {
+      throw Error(scene_name + ": frame " + std::to_string(frame) + ": " + e.what());
+    }
+  };
+  check(first);
+  const std::vector<CameraKey>& keys = scene.animation.camera;
+  if (keys.empty()) return;
+  // Outside its keys the camera holds the nearest one: only the keyed span can differ from
+  // `first`'s camera.
+  const int from = std::max(first, keys.front().frame);
+  const int to = std::min(last, keys.back().frame);
+  for (long long frame = from; frame <= to; ++frame) check(static_cast<int>(frame));
+  if (last > to) check(last);
+}
+
+FramePose pose_at(const Scene& scene, int frame) {
+  FramePose pose;
+  pose.frame = frame;
+  const Animation& anim = scene.animation;
+
+  pose.camera = camera_at(scene, frame);
 
   pose.world_from_object.reserve(scene.meshes.size());
   for (const Mesh& mesh : scene.meshes) pose.world_from_object.push_back(mesh.world_from_object);

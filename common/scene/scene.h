@@ -177,6 +177,15 @@ struct FramePose {
   std::vector<PointLight> lights;
 };
 
+/// The camera at `frame` (pose_at's camera).
+[[nodiscard]] Camera camera_at(const Scene& scene, int frame);
+
+/// Throws rtc::Error ("<scene_name>: frame N: camera: ...") for the first frame in [first, last]
+/// whose camera CameraRays refuses (eye on look_at, up along the view, vfov out of (0, 180)), so
+/// that a camera animated into such a pose is refused before anything is rendered, not by a
+/// worker in the middle of a run. Visits only the frames its keys span.
+void check_cameras(const Scene& scene, int first, int last, const std::string& scene_name);
+
 /// Evaluates the animation at `frame` (deterministic; double-precision interpolation, rotations
 /// by slerp_shortest: the same bits on every CPU).
 [[nodiscard]] FramePose pose_at(const Scene& scene, int frame);

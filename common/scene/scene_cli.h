@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "common/base/cli_checks.h"
 #include "common/base/timer.h"
 #include "common/scene/load.h"
 
@@ -31,6 +32,7 @@ inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
   app.add_option("--max-depth", o.max_depth, "reflection bounces (default: the scene's, normally 8)")
       ->check(CLI::Range(0, 64));
   app.add_option("--min-weight", o.min_weight, "ray-weight cutoff for reflections (default: the scene's, normally 0.001)")
+      ->check(kNotNan)
       ->check(CLI::Range(0.0f, 1.0f));
   app.add_option("--intersector", o.intersector,
                  "ray/triangle test: wald (fast) or watertight (no rays through shared edges) "

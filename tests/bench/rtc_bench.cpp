@@ -25,6 +25,7 @@
 
 #include "common/accel/trace.h"
 #include "common/accel/walk_stats.h"
+#include "common/base/cli_checks.h"
 #include "common/base/error.h"
 #include "common/base/isa.h"
 #include "common/base/log.h"
@@ -379,21 +380,21 @@ int run(int argc, char** argv) {
                "untimed pass of its own first (the order up to 2026-11-29, which left Embree's 4- to 16-wide modes "
                "the caches of another Embree mode and rtc's packets those of Embree's)");
   rtc::KdBuildOptions kd_options;
-  app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(CLI::PositiveNumber);
+  app.add_option("--kd-traversal-cost", kd_options.traversal_cost, "SAH K_T")->check(rtc::kNotNan)->check(CLI::PositiveNumber);
   app.add_option("--kd-footprint", kd_options.footprint_pixels,
                  "view-aware SAH: small nodes' lengths counted this many pixels longer (0: the plain SAH)")
-      ->check(CLI::Range(0.0f, 1024.0f))
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1024.0f))
       ->capture_default_str();
   app.add_option("--kd-footprint-max-refs", kd_options.footprint_max_refs,
                  "view-aware SAH: for nodes of at most this many references")
       ->check(CLI::Range(0, 1 << 30))
       ->capture_default_str();
-  app.add_option("--kd-intersection-cost", kd_options.intersection_cost, "SAH K_I")->check(CLI::PositiveNumber);
-  app.add_option("--kd-empty-bonus", kd_options.empty_bonus, "SAH empty-space bonus")->check(CLI::Range(0.0f, 0.99f));
+  app.add_option("--kd-intersection-cost", kd_options.intersection_cost, "SAH K_I")->check(rtc::kNotNan)->check(CLI::PositiveNumber);
+  app.add_option("--kd-empty-bonus", kd_options.empty_bonus, "SAH empty-space bonus")->check(rtc::kNotNan)->check(CLI::Range(0.0f, 0.99f));
   app.add_option("--kd-empty-cut", kd_options.empty_cut,
                  "event-sweep nodes whose triangles leave at least this fraction of the cell empty on one side are "
                  "cut there without the SAH sweep (above 1: off)")
-      ->check(CLI::Range(0.0f, 1e9f))
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1e9f))
       ->capture_default_str();
   app.add_option("--kd-max-depth", kd_options.max_depth, "kd-tree depth limit (0: 8 + 1.3 log2 N)")
       ->check(CLI::Range(0, 60));
@@ -403,7 +404,7 @@ int run(int argc, char** argv) {
   app.add_option("--kd-leaf-box-saving", kd_options.leaf_box_saving,
                  "leaves get a box of their contents, tested before them, where it saves at least this many "
                  "triangle tests per visit by the SAH's estimate (0: no boxes)")
-      ->check(CLI::Range(0.0f, 1e9f));
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1e9f));
   // --ab-kd-OPTION: a second tree built with another value of --kd-OPTION, timed beside the first.
   const auto ab_help = [](const char* option) {
     return std::string("primary and shadow modes: also build a tree with this --kd-") + option +
@@ -412,10 +413,10 @@ int run(int argc, char** argv) {
   };
   float ab_leaf_box_saving = -1.0f;
   app.add_option("--ab-kd-leaf-box-saving", ab_leaf_box_saving, ab_help("leaf-box-saving"))
-      ->check(CLI::Range(0.0f, 1e9f));
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1e9f));
   float ab_empty_cut = -1.0f;
   app.add_option("--ab-kd-empty-cut", ab_empty_cut, ab_help("empty-cut"))
-      ->check(CLI::Range(0.0f, 1e9f));
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1e9f));
   app.add_option("--kd-exact-below", kd_options.exact_below,
                  "nodes of more references than this are split with the binned SAH, smaller ones built as blocks "
                  "with the exact event sweep")
@@ -434,7 +435,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1, 1 << 30));
   float ab_footprint = -1.0f;
   app.add_option("--ab-kd-footprint", ab_footprint, ab_help("footprint"))
-      ->check(CLI::Range(0.0f, 1024.0f));
+      ->check(rtc::kNotNan)->check(CLI::Range(0.0f, 1024.0f));
   app.add_option("--kd-mask-below", kd_options.mask_below,
                  "subtrees of at most this many references (up to 256) built with bit masks, not clipped below "
                  "their root (0: the event sweep to the leaves; -1: 64 with --kd-clip on, 256 with it off)")
@@ -451,12 +452,12 @@ int run(int argc, char** argv) {
   app.add_option("--ab-kd-max-depth", ab_max_depth, ab_help("max-depth"))->check(CLI::Range(0, 60));
   float ab_traversal_cost = -1.0f;
   app.add_option("--ab-kd-traversal-cost", ab_traversal_cost, ab_help("traversal-cost"))
-      ->check(CLI::PositiveNumber);
+      ->check(rtc::kNotNan)->check(CLI::PositiveNumber);
   float ab_intersection_cost = -1.0f;
   app.add_option("--ab-kd-intersection-cost", ab_intersection_cost, ab_help("intersection-cost"))
-      ->check(CLI::PositiveNumber);
+      ->check(rtc::kNotNan)->check(CLI::PositiveNumber);
   float ab_empty_bonus = -1.0f;
-  app.add_option("--ab-kd-empty-bonus", ab_empty_bonus, ab_help("empty-bonus"))->check(CLI::Range(0.0f, 0.99f));
+  app.add_option("--ab-kd-empty-bonus", ab_empty_bonus, ab_help("empty-bonus"))->check(rtc::kNotNan)->check(CLI::Range(0.0f, 0.99f));
   std::string sweep_dir;
   bool sweep_quick = false, no_embree_check = false;
   int width = 0, height = 0;

@@ -227,6 +227,42 @@ case_missing_out_folder() {
   [[ ! -e $work/missing ]] || fail "the missing folder was created"
 }
 
+case_bad_output_checked_first() {
+  # Checked before the scene is loaded or a frame rendered: no image appears.
+  expect_error out_ext "--out" "o_0000.xyz" "unsupported extension '.xyz'" -- \
+    "$render" --frames 0-1 --width 16 --height 16 --out "$work/o_####.xyz"
+  mkdir "$work/taken.png"
+  expect_error out_is_folder "--out" "$work/taken.png" "is a folder" -- \
+    "$render" --frames 0 --width 16 --height 16 --out "$work/taken.png"
+  expect_error out_empty "--out: the pattern is empty" -- \
+    "$render" --frames 0 --width 16 --height 16 --out ""
+  expect_error frames_empty "--frames" 'got ""' -- \
+    "$render" --frames "" --width 16 --height 16 --out "$work/o.png"
+  expect_error log_level "--log-level" '"loud"' -- \
+    "$render" --frames 0 --width 16 --height 16 --log-level loud --out "$work/o.png"
+  # CLI11's own checks exit with its codes (105: a value it refuses); NaN used to pass them.
+  run min_weight_nan "$render" --frames 0 --width 16 --height 16 --min-weight nan --out "$work/o.png"
+  expect_rc min_weight_nan 105
+  grep -q -- "--min-weight" "$work/min_weight_nan.err" || fail "min_weight_nan: the message does not name --min-weight"
+  [[ -z $(find "$work" -name 'o_*' -o -name 'o.png') ]] || fail "an image was written despite a bad option"
+}
+
+case_degenerate_camera() {
+  # The camera reaches look_at at frame 1 of 3: refused, naming the file and the frame, before
+  # frame 0 is written.
+  printf 'v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 16 16\nl 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n' >"$work/tri.nff"
+  cat >"$work/moving.json" <<'JSON'
+{"mesh": "tri.nff", "resolution": [16, 16],
+ "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 45},
+ "animation": {"frames": [0, 2], "camera": [
+   {"frame": 0, "eye": [0, 0, 5], "look_at": [0, 0, 0]},
+   {"frame": 2, "eye": [0, 0, -5], "look_at": [0, 0, 0]}]}}
+JSON
+  expect_error camera "$work/moving.json" "frame 1" "eye and look_at coincide" -- \
+    "$render" "$work/moving.json" --out "$work/m_####.png"
+  [[ -z $(find "$work" -name 'm_*') ]] || fail "frames were written for a scene whose camera degenerates at frame 1"
+}
+
 case_bad_isa() {
   expect_error isa '"avx9"' "unknown ISA" -- \
     "$render" --frames 0 --width 8 --height 8 --isa avx9 --out "$work/o.png"

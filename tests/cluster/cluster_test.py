@@ -37,7 +37,7 @@ VERSION = 1
 HEADER = struct.Struct("<IHHII")  # magic, version, type, payload length, crc32 of the payload
 MSG_CHALLENGE, MSG_HELLO, MSG_AUTH, MSG_ERROR = 1, 2, 3, 14
 MSG_SCENE_OFFER, MSG_SCENE_REQUEST, MSG_SCENE_READY, MSG_TILE_ASSIGN, MSG_TILE_RESULT = 5, 6, 8, 10, 11
-ERROR_AUTH_FAILED = 3
+ERROR_AUTH_FAILED, ERROR_INTERNAL = 3, 5
 AUTH_CONTEXT = b"rtc-auth-v1"
 
 # Small frames keep a case fast: a worker's first frame builds the kd-trees (~0.2 s), every
@@ -1403,6 +1403,29 @@ def case_faults(c):
     print(f"{len(records)} frames, every one equal to rtc-render's")
 
 
+def case_failing_workers(c):
+    """Workers that fail the same work again and again (each reports a render error, reconnects
+    and is handed the tiles again) make the master give up with exit 1 and the last error,
+    instead of cycling until killed."""
+    master, addr, _ = c.start_master("master", [*SMALL, *WHOLE, "--frames", "0-3", "--link-mbps", "1000"])
+    for i in range(8):
+        w = FakeWorker(addr, f"failing-{i}")
+        w.join()
+        w.tiles()
+        text = f"render failed: injected failure {i}".encode()
+        w.sock.sendall(message(MSG_ERROR, struct.pack("<H", ERROR_INTERNAL) + wire_str(text)))
+        read_until_closed(w.sock, 10)
+        w.close()
+        if not master.alive():
+            if i < 7:
+                fail(f"the master ended after {i + 1} worker errors, before the 8th")
+            break
+    expect_exit(master, 1, 15, "give up after 8 worker errors in a row")
+    expect_log(master, r"8 worker errors in a row and no tile finished in between; the last, from .*injected failure 7",
+               "the reason, with the last worker's error", timeout=1)
+    print("the master gave up after 8 worker errors in a row, naming the last")
+
+
 def case_master_dies(c):
     """The master is SIGKILLed mid-run: the worker notices, retries for --retry-seconds, then exits
     1 saying it gave up."""
@@ -1426,6 +1449,11 @@ def case_master_dies(c):
 
 def case_master_cli_errors(c):
     """Bad rtc-master options fail before anything listens: exit 1, a message naming the option."""
+    # A camera every worker would refuse (eye on look_at) is refused by the master itself.
+    degenerate = c.path("eye_on_look_at.nff")
+    with open(degenerate, "w") as f:
+        f.write("v\nfrom 0 0 5\nat 0 0 5\nup 0 1 0\nangle 45\nhither 1\nresolution 32 32\n"
+                "l 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n")
     cases = [
         (["--wire", "rgba16"], r"--wire: expected rgba8, half or float"),
         (["--compress", "gzip"], r"--compress: expected none, lz4 or zstd"),
@@ -1437,6 +1465,11 @@ def case_master_cli_errors(c):
         (["--token-file", c.path("no-such-token")], r"no-such-token"),
         (["--listen", "127.0.0.1:99999"], r"bad port"),
         ([c.path("no-such-scene.json")], r"no-such-scene.json"),
+        (["--out", c.path("x_####.xyz")], r"--out: .*x_0000\.xyz: unsupported extension '\.xyz'"),
+        (["--out", ""], r"--out: the pattern is empty"),
+        (["--frames", ""], r'--frames: expected A-B or A, got ""'),
+        (["--log-level", "loud"], r'--log-level: expected trace, debug, info, warn, error or off, got "loud"'),
+        ([degenerate], rf"{re.escape(degenerate)}: frame 0: camera: eye and look_at coincide"),
     ]
     for i, (args, pattern) in enumerate(cases):
         ready = c.path(f"ready-{i}")
@@ -1643,6 +1676,7 @@ CASES = {
     "soak": case_soak,
     "faults": case_faults,
     "master_dies": case_master_dies,
+    "failing_workers": case_failing_workers,
     "master_cli_errors": case_master_cli_errors,
     "launch_local": case_launch_local,
 }

@@ -6,7 +6,9 @@
 #include <cstring>
 #include <numbers>
 #include <random>
+#include <string>
 
+#include "common/base/error.h"
 #include "common/math/camera.h"
 #include "common/scene/load.h"
 #include "test_files.h"
@@ -401,6 +403,50 @@ TEST(DefaultScene, AnimationMovesOneSphereOnly) {
   EXPECT_EQ(moved, 1);
   EXPECT_EQ(first.camera, middle.camera);
   EXPECT_EQ(first.lights, middle.lights);
+}
+
+/// A one-triangle scene whose camera keys (frames 10 and 20) pass through look_at at frame 15.
+Scene camera_through_look_at() {
+  Scene scene = test::one_triangle_scene();
+  scene.animation.frame_begin = 0;
+  scene.animation.frame_end = 30;
+  Camera a = scene.camera, b = scene.camera;
+  a.look_at = glm::vec3(0.0f);
+  b.look_at = glm::vec3(0.0f);
+  a.eye = glm::vec3(0, 0, 5);
+  b.eye = glm::vec3(0, 0, -5);
+  a.up = b.up = glm::vec3(0, 1, 0);
+  scene.animation.camera = {CameraKey{10, a}, CameraKey{20, b}};
+  return scene;
+}
+
+std::string check_cameras_error(const Scene& scene, int first, int last) {
+  try {
+    check_cameras(scene, first, last, "s.json");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Scene, CheckCamerasNamesTheFirstDegenerateFrame) {
+  const Scene scene = camera_through_look_at();
+  EXPECT_EQ(camera_at(scene, 15).eye, camera_at(scene, 15).look_at);
+  EXPECT_EQ(check_cameras_error(scene, 0, 30), "s.json: frame 15: camera: eye and look_at coincide");
+  EXPECT_EQ(check_cameras_error(scene, 15, 15), "s.json: frame 15: camera: eye and look_at coincide");
+  // Frames on either side of it, and outside the keys (which hold the nearest key's camera).
+  EXPECT_EQ(check_cameras_error(scene, 0, 14), "");
+  EXPECT_EQ(check_cameras_error(scene, 16, 30), "");
+  EXPECT_EQ(check_cameras_error(scene, 21, 2000000000), "");
+  // camera_at is pose_at's camera.
+  for (int frame : {0, 12, 15, 19, 25}) EXPECT_EQ(camera_at(scene, frame), pose_at(scene, frame).camera);
+}
+
+TEST(Scene, CheckCamerasWithoutKeysChecksTheSceneCamera) {
+  Scene scene = test::one_triangle_scene();
+  EXPECT_EQ(check_cameras_error(scene, 0, 100), "");
+  scene.camera.up = glm::normalize(scene.camera.look_at - scene.camera.eye);
+  EXPECT_EQ(check_cameras_error(scene, 3, 100), "s.json: frame 3: camera: up is parallel to the view direction");
 }
 
 }  // namespace
