@@ -16,11 +16,18 @@ build="${RTC_BUILD_DIR:-$root/build/release}"
 workers="$(nproc)"
 scene=()
 if [ $# -gt 0 ] && [ "$1" != "--" ]; then
-  if ! [[ "$1" =~ ^[0-9]+$ ]] || [ "$1" -lt 1 ]; then
+  if ! [[ "$1" =~ ^[0-9]+$ ]] || [[ "$1" =~ ^0+$ ]]; then
     echo "launch-local: N must be a positive number of workers, got \"$1\"" >&2
     exit 2
   fi
-  workers="$1"
+  # Each worker is a process with at least one render thread on this machine: far more than
+  # the cores only slows the frames down (and takes a long time to start and stop).
+  max_workers=$((8 * $(nproc)))
+  if ! [[ "$1" =~ ^0*[0-9]{1,6}$ ]] || [ "$((10#$1))" -gt "$max_workers" ]; then
+    echo "launch-local: N = $1 workers on $(nproc) cores: at most $max_workers (8 a core); for more, start rtc-worker on other machines" >&2
+    exit 2
+  fi
+  workers="$((10#$1))"
   shift
 fi
 if [ $# -gt 0 ] && [ "$1" != "--" ]; then

@@ -19,6 +19,8 @@ FrameRange parse_frame_range(const std::string& text, const std::string& option)
       r.last = std::stoi(text.substr(dash + 1), &used);
       if (used != text.size() - dash - 1) throw std::invalid_argument(text);
     }
+  } catch (const std::out_of_range&) {
+    throw Error(option + ": " + text + ": a frame number out of range (at most 2147483647)");
   } catch (const std::exception&) {
     throw Error(option + ": expected A-B or A, got \"" + text + "\"");
   }

@@ -6,13 +6,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "common/base/error.h"
+#include "common/base/frame_range.h"
 #include "common/base/isa.h"
+#include "common/base/log.h"
 #include "common/base/progress.h"
 
 namespace rtc {
@@ -155,6 +158,40 @@ TEST(Isa, CpuSupportIsMonotonic) {
   if (cpu_supports(Isa::Avx2)) {
     EXPECT_TRUE(cpu_supports(Isa::Sse42));
   }
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(FrameRange, ParsesARangeOrOneFrame) {
+  const FrameRange r = parse_frame_range("3-17");
+  EXPECT_EQ(r.first, 3);
+  EXPECT_EQ(r.last, 17);
+  const FrameRange one = parse_frame_range("5");
+  EXPECT_EQ(one.first, 5);
+  EXPECT_EQ(one.last, 5);
+}
+
+TEST(FrameRange, RefusesBadTextWithTheReason) {
+  EXPECT_EQ(error_of([] { (void)parse_frame_range(""); }), "--frames: expected A-B or A, got \"\"");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("1-x"); }), "--frames: expected A-B or A, got \"1-x\"");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("5-2"); }), "--frames: 5-2 is an empty range");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("0-99999999999999"); }),
+            "--frames: 0-99999999999999: a frame number out of range (at most 2147483647)");
+}
+
+TEST(Logging, UnknownLevelIsAnError) {
+  // spdlog reads an unknown word as "off": a typo silenced the whole log.
+  EXPECT_EQ(error_of([] { init_logging("Info"); }),
+            "--log-level: expected trace, debug, info, warn, error or off, got \"Info\"");
+  EXPECT_EQ(error_of([] { init_logging("loud"); }),
+            "--log-level: expected trace, debug, info, warn, error or off, got \"loud\"");
 }
 
 TEST(ProgressBar, CountsWithoutDrawingWhenNotForced) {

@@ -571,6 +571,34 @@ TEST(FramePattern, BadPatternsThrowNamingThePattern) {
   EXPECT_THROW((void)expand_frame_pattern("f_####.exr", -1, true), Error);
 }
 
+using OutputPattern = ImageFileTest;
+
+TEST_F(OutputPattern, CheckedBeforeRendering) {
+  const auto error_of = [](const std::string& pattern, bool multiple) -> std::string {
+    try {
+      (void)check_output_pattern(pattern, 3, multiple);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string d = dir_.string();
+  EXPECT_EQ(check_output_pattern(d + "/f_####.exr", 3, true), dir_ / "f_0003.exr");
+  EXPECT_EQ(error_of(d + "/f_####.exr", true), "");
+  EXPECT_EQ(error_of(d + "/f.PNG", false), "");
+  EXPECT_EQ(error_of(d + "/f_####.xyz", true),
+            "--out: " + d + "/f_0003.xyz: unsupported extension '.xyz' (use .exr, .tif, .tiff, .png, .jpg, .jpeg or .ppm)");
+  EXPECT_EQ(error_of(d + "/missing/f.png", false), "--out: " + d + "/missing/f.png: folder " + d + "/missing does not exist");
+  fs::create_directories(dir_ / "taken.png");
+  EXPECT_EQ(error_of(d + "/taken.png", false), "--out: " + d + "/taken.png: is a folder");
+  {
+    std::ofstream(dir_ / "plain") << "x";
+  }
+  EXPECT_EQ(error_of(d + "/plain/f.png", false), "--out: " + d + "/plain/f.png: '" + d + "/plain' is not a folder");
+  // The pattern's own errors come through.
+  EXPECT_NE(error_of(d + "/f_##_##.exr", true).find("frame placeholders"), std::string::npos);
+}
+
 // ---- Image, blit, hash -----------------------------------------------------------------------
 
 TEST(Image, ConstructorFillsTheBackground) {
