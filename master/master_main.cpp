@@ -12,6 +12,7 @@
 #include "common/base/error.h"
 #include "common/base/frame_range.h"
 #include "common/base/log.h"
+#include "common/base/process_memory.h"
 #include "common/image/image.h"
 #include "common/image/pixel_format.h"
 #include "common/render/temporal_cli.h"
@@ -146,6 +147,15 @@ int run(int argc, char** argv) {
                      ": " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
                      " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
   }
+  // Each frame in flight is held whole on the master: RGBA float, and the EXR channels asked for.
+  const std::uint64_t frame_bytes = std::uint64_t{static_cast<std::uint32_t>(scene.width)} *
+                                    static_cast<std::uint32_t>(scene.height) *
+                                    (16u + ((o.channels & rtc::kChannelDepth) ? 4u : 0u) +
+                                     ((o.channels & rtc::kChannelNormal) ? 12u : 0u));
+  rtc::check_memory(std::to_string(o.frames_in_flight) + " frames in flight of " + std::to_string(scene.width) + "x" +
+                        std::to_string(scene.height),
+                    frame_bytes * static_cast<std::uint64_t>(o.frames_in_flight),
+                    "use a smaller --width/--height or fewer --frames-in-flight");
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   rtc::check_cameras(scene, frames.first, frames.last,
                      scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);

@@ -105,6 +105,12 @@ int run(int argc, char** argv) {
   options.packets = !single_rays;
   options.kd_clip = rtc::parse_kd_clip(kd_clip);
   options.aovs = !(no_depth && no_normal);
+  // Each frame is held whole: RGBA float, and depth and normals unless both are left out.
+  rtc::check_memory(
+      "a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
+      std::uint64_t{static_cast<std::uint32_t>(scene.width)} * static_cast<std::uint32_t>(scene.height) *
+          (options.aovs ? 32u : 16u),
+      options.aovs ? "use a smaller --width/--height, or --no-depth --no-normal" : "use a smaller --width/--height");
   options.specialise = !no_specialise;
   options.skip_empty = !no_skip_empty;
   options.instance_moving_meshes = !rebuild_moving;

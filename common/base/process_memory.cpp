@@ -3,8 +3,11 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 
 #include <spdlog/spdlog.h>
+
+#include "common/base/error.h"
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -63,6 +66,25 @@ void log_freed_memory_policy(const FreedMemoryPolicy& policy) {
   } else {
     spdlog::debug("malloc's thresholds left as they are: {}", policy.reason);
   }
+}
+
+std::optional<std::uint64_t> available_memory_bytes() {
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key;
+  std::uint64_t value = 0;
+  std::string unit;
+  while (meminfo >> key >> value) {
+    std::getline(meminfo, unit);
+    if (key == "MemAvailable:") return value * 1024;  // the kernel reports kB
+  }
+  return std::nullopt;
+}
+
+void check_memory(const std::string& what, std::uint64_t need, const std::string& hint) {
+  const std::optional<std::uint64_t> available = available_memory_bytes();
+  if (!available || need <= *available) return;
+  throw Error(fmt::format("{} needs at least {:.1f} GB of memory and this machine has {:.1f} GB available: {}", what,
+                          need / 1e9, *available / 1e9, hint));
 }
 
 }  // namespace rtc

@@ -2,6 +2,8 @@
 // kd-tree build (or a benchmark's next rep) does not fault its pages in again.
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 namespace rtc {
@@ -40,5 +42,15 @@ void log_freed_memory_policy(const FreedMemoryPolicy& policy);
 /// keep_freed_memory's decision from the environment: the reason not to set the thresholds,
 /// or an empty string to set them. `env` looks a variable up (getenv's contract).
 std::string freed_memory_veto(const char* (*env)(const char* name));
+
+/// The memory a new allocation can get without swapping (MemAvailable in /proc/meminfo), or
+/// nullopt where that cannot be read.
+std::optional<std::uint64_t> available_memory_bytes();
+
+/// Throws rtc::Error ("<what> needs at least X GB of memory and this machine has Y GB available:
+/// <hint>") when `need` bytes exceed available_memory_bytes(), so that a frame far too big for
+/// the machine is refused up front instead of the process being killed for memory halfway;
+/// does nothing where the available memory is unknown.
+void check_memory(const std::string& what, std::uint64_t need, const std::string& hint);
 
 }  // namespace rtc

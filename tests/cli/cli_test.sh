@@ -247,6 +247,20 @@ case_bad_output_checked_first() {
   [[ -z $(find "$work" -name 'o_*' -o -name 'o.png') ]] || fail "an image was written despite a bad option"
 }
 
+case_frame_too_big_for_memory() {
+  # 32768x32768 with depth and normals holds 34.4 GB: refused up front where that is more than
+  # the machine has (the test machines have 24 GB), instead of being killed for memory later.
+  local avail_kb
+  avail_kb=$(awk '/^MemAvailable:/ {print $2}' /proc/meminfo)
+  if [[ -z $avail_kb ]] || (( avail_kb * 1024 >= 34359738368 )); then
+    echo "skipped: MemAvailable ${avail_kb:-unknown} kB is enough for the frame"
+    exit 77
+  fi
+  expect_error big_frame "a 32768x32768 frame needs at least 34.4 GB of memory" "--no-depth --no-normal" -- \
+    "$render" --frames 0 --width 32768 --height 32768 --out "$work/big.png"
+  [[ ! -e $work/big.png ]] || fail "an image was written"
+}
+
 case_degenerate_camera() {
   # The camera reaches look_at at frame 1 of 3: refused, naming the file and the frame, before
   # frame 0 is written.
