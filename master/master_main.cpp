@@ -147,25 +147,29 @@ int run(int argc, char** argv) {
                      ": " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
                      " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
   }
-  // Each frame in flight is held whole on the master: RGBA float, and the EXR channels asked for.
-  const std::uint64_t frame_bytes = std::uint64_t{static_cast<std::uint32_t>(scene.width)} *
-                                    static_cast<std::uint32_t>(scene.height) *
-                                    (16u + ((o.channels & rtc::kChannelDepth) ? 4u : 0u) +
-                                     ((o.channels & rtc::kChannelNormal) ? 12u : 0u));
-  rtc::check_memory(std::to_string(o.frames_in_flight) + " frames in flight of " + std::to_string(scene.width) + "x" +
-                        std::to_string(scene.height),
-                    frame_bytes * static_cast<std::uint64_t>(o.frames_in_flight),
-                    "use a smaller --width/--height or fewer --frames-in-flight");
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   rtc::check_cameras(scene, frames.first, frames.last,
                      scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
+  const bool temporal = o.multiple_frames && rtc::temporal_for(scene, o.temporal);
   // With temporal coherence the tile is the unit retraced: finer tiles retrace less.
-  if (app.count("--tile") == 0 && o.multiple_frames && rtc::temporal_for(scene, o.temporal)) {
-    o.tile_size = rtc::kTemporalTileSize;
-  }
+  if (app.count("--tile") == 0 && temporal) o.tile_size = rtc::kTemporalTileSize;
+  // Every frame open at once is held whole on the master (RGBA float and the EXR channels asked
+  // for), and with temporal coherence one more: the canvas of every tile's latest pixels.
+  const std::uint64_t frame_bytes = std::uint64_t{static_cast<std::uint32_t>(scene.width)} *
+                                    static_cast<std::uint32_t>(scene.height) *
+                                    (16u + ((o.channels & rtc::kChannelDepth) ? 4u : 0u) +
+                                     ((o.channels & rtc::kChannelNormal) ? 12u : 0u));
+  const std::uint64_t frame_count = static_cast<std::uint64_t>(frames.last - frames.first) + 1;
+  const std::uint64_t held =
+      (o.loop_seconds > 0 ? static_cast<std::uint64_t>(o.frames_in_flight)
+                          : std::min<std::uint64_t>(static_cast<std::uint64_t>(o.frames_in_flight), frame_count)) +
+      (temporal ? 1u : 0u);
+  rtc::check_memory(std::to_string(held) + (held == 1 ? " frame" : " frames") + " of " + std::to_string(scene.width) +
+                        "x" + std::to_string(scene.height) + " held at once",
+                    frame_bytes * held, "use a smaller --width/--height or fewer --frames-in-flight");
   if (!o.out_pattern.empty()) (void)rtc::check_output_pattern(o.out_pattern, frames.first, o.multiple_frames);
   return rtc::run_master(scene, o);
 }

@@ -537,6 +537,7 @@ class Master {
     }
     if (outcome == TileOutcome::Accepted) {
       worker_failures_in_a_row_ = 0;
+      failed_workers_.clear();
       OpenFrame& f = fit->second;
       f.image.blit(tile_, static_cast<int>(r.x), static_cast<int>(r.y));
       FrameStats& s = f.stats;
@@ -581,17 +582,34 @@ class Master {
 
   void handle(Worker& w, proto::ErrorMessage&& m, std::size_t) {
     spdlog::error("{} reports an error (code {}): {}", w.describe(), static_cast<int>(m.code), m.text);
+    const Worker::State state = w.state;  // closing sets it to Closed
     w.conn->close("it reported an error: " + m.text);
     // A worker that fails to render or to decode the scene comes back and is handed the same
     // work: an error every worker hits (a frame's camera a worker refuses, a scene too big for
-    // them) would otherwise cycle until someone kills the master.
-    if (m.code == proto::ErrorCode::Internal || m.code == proto::ErrorCode::SceneInvalid) {
-      if (++worker_failures_in_a_row_ >= kWorkerFailuresToGiveUp) {
-        fatal(std::to_string(worker_failures_in_a_row_) + " worker errors in a row and no tile finished in between; " +
-              "the last, from " + w.describe() + ": " + m.text);
-      }
+    // them) would otherwise cycle until someone kills the master. Only a worker's own failure
+    // counts: one that has authenticated and reports a render error (Internal) or a scene it
+    // could not decode (SceneInvalid). The run ends once such errors have come
+    // kWorkerFailuresToGiveUp times with no tile finished in between and no ready worker is left
+    // that has not failed meanwhile: one broken machine among good ones, which may still be
+    // building their trees, does not end it.
+    const bool own_failure = (m.code == proto::ErrorCode::Internal && state == Worker::State::Ready) ||
+                             (m.code == proto::ErrorCode::SceneInvalid &&
+                              (state == Worker::State::Scene || state == Worker::State::Ready));
+    if (!own_failure) return;
+    ++worker_failures_in_a_row_;
+    failed_workers_.insert(worker_identity(w));
+    if (worker_failures_in_a_row_ < kWorkerFailuresToGiveUp) return;
+    for (const auto& [id, other] : workers_) {
+      if (other->rejected || other->state != Worker::State::Ready || !other->conn->is_open()) continue;
+      if (failed_workers_.count(worker_identity(*other)) == 0) return;  // a worker that has not failed yet
     }
+    fatal(std::to_string(worker_failures_in_a_row_) + " worker errors in a row from " +
+          std::to_string(failed_workers_.size()) + (failed_workers_.size() == 1 ? " worker" : " workers") +
+          ", no tile finished in between and no other worker ready; the last, from " + w.describe() + ": " + m.text);
   }
+
+  /// A worker across its reconnections: its host and the name it gives.
+  static std::string worker_identity(const Worker& w) { return w.host + "/" + w.hello.name; }
 
   void handle(Worker& w, proto::Goodbye&& m, std::size_t) {
     w.conn->close("it said goodbye: " + m.reason);
@@ -1008,9 +1026,11 @@ class Master {
   bool stopping_ = false;
   bool done_ = false;
   std::string fatal_error_;
-  /// Render or scene errors reported by workers since the last tile accepted (fatal at
-  /// kWorkerFailuresToGiveUp: retrying such work does not help).
+  /// Render or scene errors reported by workers since the last tile accepted, and which workers
+  /// (worker_identity) reported them (fatal at kWorkerFailuresToGiveUp with no other worker
+  /// ready: retrying such work does not help).
   int worker_failures_in_a_row_ = 0;
+  std::set<std::string> failed_workers_;
   static constexpr int kWorkerFailuresToGiveUp = 8;
   std::unique_ptr<FrameWriter> writer_;
   std::ofstream stats_file_;

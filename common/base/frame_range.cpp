@@ -2,6 +2,7 @@
 #include "common/base/frame_range.h"
 
 #include <stdexcept>
+#include <string>
 
 #include "common/base/error.h"
 
@@ -20,12 +21,15 @@ FrameRange parse_frame_range(const std::string& text, const std::string& option)
       if (used != text.size() - dash - 1) throw std::invalid_argument(text);
     }
   } catch (const std::out_of_range&) {
-    throw Error(option + ": " + text + ": a frame number out of range (at most 2147483647)");
+    throw Error(option + ": " + text + ": frame numbers must be at most " + std::to_string(kMaxFrameNumber));
   } catch (const std::exception&) {
     throw Error(option + ": expected A-B or A, got \"" + text + "\"");
   }
   if (r.last < r.first) throw Error(option + ": " + text + " is an empty range");
   if (r.first < 0) throw Error(option + ": " + text + ": frame numbers must be >= 0");
+  if (r.last > kMaxFrameNumber) {
+    throw Error(option + ": " + text + ": frame numbers must be at most " + std::to_string(kMaxFrameNumber));
+  }
   return r;
 }
 

@@ -10,7 +10,12 @@ struct FrameRange {
   int last = 0;
 };
 
-/// Parses "A-B" or "A" (frames >= 0, B >= A). Throws rtc::Error naming `option` and the text.
+/// The largest frame number a command line takes (the scene format's limit too): loops to the
+/// last frame then never overflow an int.
+inline constexpr int kMaxFrameNumber = 1000000000;
+
+/// Parses "A-B" or "A" (0 <= A <= B <= kMaxFrameNumber). Throws rtc::Error naming `option` and
+/// the text.
 [[nodiscard]] FrameRange parse_frame_range(const std::string& text, const std::string& option = "--frames");
 
 }  // namespace rtc

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <iterator>
 #include <string>
+#include <string_view>
 
 #include "common/base/error.h"
 
@@ -13,9 +14,11 @@ namespace rtc {
 
 void init_logging(const std::string& level) {
   // spdlog::level::from_str reads any other word as "off", which silenced a run's whole log.
-  static constexpr const char* kLevels[] = {"trace", "debug", "info", "warn", "error", "off"};
+  // Its own names are all taken ("warning", "err" and "critical" as well).
+  static constexpr std::string_view kLevels[] = {"trace", "debug", "info",     "warn", "warning",
+                                                 "error", "err",   "critical", "off"};
   if (std::find(std::begin(kLevels), std::end(kLevels), level) == std::end(kLevels)) {
-    throw Error("--log-level: expected trace, debug, info, warn, error or off, got \"" + level + "\"");
+    throw Error("--log-level: expected trace, debug, info, warn, error, critical or off, got \"" + level + "\"");
   }
   auto logger = spdlog::stderr_color_mt("rtc");
   logger->set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");

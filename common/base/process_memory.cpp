@@ -1,6 +1,7 @@
 // keep_freed_memory: glibc malloc thresholds that keep freed memory in the process.
 #include "common/base/process_memory.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -68,16 +69,87 @@ void log_freed_memory_policy(const FreedMemoryPolicy& policy) {
   }
 }
 
-std::optional<std::uint64_t> available_memory_bytes() {
-  std::ifstream meminfo("/proc/meminfo");
-  std::string key;
+namespace {
+
+/// The first number in `path` (nullopt where it is missing or holds no number, e.g. "max").
+std::optional<std::uint64_t> read_number(const std::string& path) {
+  std::ifstream in(path);
   std::uint64_t value = 0;
-  std::string unit;
-  while (meminfo >> key >> value) {
-    std::getline(meminfo, unit);
-    if (key == "MemAvailable:") return value * 1024;  // the kernel reports kB
+  if (in >> value) return value;
+  return std::nullopt;
+}
+
+/// The value of `key` in a "key value" file (memory.stat), or nullopt.
+std::optional<std::uint64_t> read_stat(const std::string& path, const std::string& key) {
+  std::ifstream in(path);
+  std::string name;
+  std::uint64_t value = 0;
+  while (in >> name >> value) {
+    if (name == key) return value;
   }
   return std::nullopt;
+}
+
+/// What the memory cgroups this process is in still allow it (limit minus usage, the smallest
+/// over the cgroup and its ancestors), or nullopt where no limit is set or none can be read. A
+/// container's limit is not in /proc/meminfo, which shows the whole machine.
+std::optional<std::uint64_t> cgroup_memory_left() {
+  std::optional<std::uint64_t> left;
+  // Usage counts the page cache too; its inactive part is given back under pressure, so it is
+  // left out, as the kubelet's working set does.
+  const auto take = [&left](std::optional<std::uint64_t> limit, std::optional<std::uint64_t> usage,
+                            std::optional<std::uint64_t> inactive_file) {
+    if (!limit || !usage || *limit >= (std::uint64_t{1} << 60)) return;  // v1 reports "no limit" as ~2^63
+    const std::uint64_t used = *usage - std::min(*usage, inactive_file.value_or(0));
+    const std::uint64_t here = *limit > used ? *limit - used : 0;
+    left = left ? std::min(*left, here) : here;
+  };
+  std::ifstream cgroups("/proc/self/cgroup");
+  std::string line;
+  while (std::getline(cgroups, line)) {
+    // "0::/path" (v2), "N:memory:/path" or "N:cpu,memory:/path" (v1).
+    const std::size_t first = line.find(':');
+    const std::size_t second = first == std::string::npos ? first : line.find(':', first + 1);
+    if (second == std::string::npos) continue;
+    const std::string controllers = line.substr(first + 1, second - first - 1);
+    std::string path = line.substr(second + 1);
+    const bool v2 = controllers.empty();
+    if (!v2 && ("," + controllers + ",").find(",memory,") == std::string::npos) continue;
+    const std::string root = v2 ? "/sys/fs/cgroup" : "/sys/fs/cgroup/memory";
+    const char* limit_file = v2 ? "/memory.max" : "/memory.limit_in_bytes";
+    const char* usage_file = v2 ? "/memory.current" : "/memory.usage_in_bytes";
+    // Up from the process's cgroup to the root; in a container with its own cgroup namespace
+    // the path reads "/" and the files are at the root.
+    for (;;) {
+      const std::string dir = root + (path == "/" ? "" : path);
+      take(read_number(dir + limit_file), read_number(dir + usage_file),
+           read_stat(dir + "/memory.stat", v2 ? "inactive_file" : "total_inactive_file"));
+      if (path.empty() || path == "/") break;
+      const std::size_t slash = path.rfind('/');
+      path = slash == 0 || slash == std::string::npos ? "/" : path.substr(0, slash);
+    }
+  }
+  return left;
+}
+
+}  // namespace
+
+std::optional<std::uint64_t> available_memory_bytes() {
+  std::optional<std::uint64_t> available;
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key, unit;
+  std::uint64_t value = 0;
+  while (meminfo >> key >> value) {
+    std::getline(meminfo, unit);
+    if (key == "MemAvailable:") {
+      available = value * 1024;  // the kernel reports kB
+      break;
+    }
+  }
+  if (const std::optional<std::uint64_t> cgroup = cgroup_memory_left()) {
+    available = available ? std::min(*available, *cgroup) : *cgroup;
+  }
+  return available;
 }
 
 void check_memory(const std::string& what, std::uint64_t need, const std::string& hint) {

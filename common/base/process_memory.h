@@ -43,8 +43,8 @@ void log_freed_memory_policy(const FreedMemoryPolicy& policy);
 /// or an empty string to set them. `env` looks a variable up (getenv's contract).
 std::string freed_memory_veto(const char* (*env)(const char* name));
 
-/// The memory a new allocation can get without swapping (MemAvailable in /proc/meminfo), or
-/// nullopt where that cannot be read.
+/// The memory a new allocation can get without swapping: MemAvailable in /proc/meminfo, or less
+/// where a memory cgroup (a container's limit) leaves less; nullopt where neither can be read.
 std::optional<std::uint64_t> available_memory_bytes();
 
 /// Throws rtc::Error ("<what> needs at least X GB of memory and this machine has Y GB available:

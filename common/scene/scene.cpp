@@ -146,9 +146,9 @@ Camera camera_at(const Scene& scene, int frame) {
 }
 
 void check_cameras(const Scene& scene, int first, int last, const std::string& scene_name) {
-  const auto check = [&](int frame) {
+  const auto check = [&](long long frame) {
     try {
-      (void)CameraRays(camera_at(scene, frame), scene.width, scene.height);
+      (void)CameraRays(camera_at(scene, static_cast<int>(frame)), scene.width, scene.height);
     } catch (const Error& e) {
       throw Error(scene_name + ": frame " + std::to_string(frame) + ": " + e.what());
     }
@@ -158,10 +158,65 @@ void check_cameras(const Scene& scene, int first, int last, const std::string& s
   if (keys.empty()) return;
   // Outside its keys the camera holds the nearest one: only the keyed span can differ from
   // `first`'s camera.
-  const int from = std::max(first, keys.front().frame);
-  const int to = std::min(last, keys.back().frame);
-  for (long long frame = from; frame <= to; ++frame) check(static_cast<int>(frame));
+  const long long from = std::max(first, keys.front().frame);
+  const long long to = std::min(last, keys.back().frame);
   if (last > to) check(last);
+  if (from > to) return;
+  constexpr long long kEveryFrameUpTo = 1 << 20;  // well under a second
+  if (to - from < kEveryFrameUpTo) {
+    for (long long frame = from; frame <= to; ++frame) check(frame);
+    return;
+  }
+  // A longer span (the scene format allows a billion frames), segment by segment between keys.
+  // There eye, look_at, up and vfov move linearly, so vfov is in range wherever it is at both
+  // ends, and a camera goes bad only near the t where the view (look_at - eye, linear in t) is
+  // shortest, or where up is least across it (parallel to the view, or short): those frames, found in closed
+  // form and by a scan, are checked with two frames either side, besides the segment's ends.
+  // (rtc-master also gives up on errors every worker reports, should this miss a frame.)
+  for (std::size_t k = 0; k + 1 < keys.size(); ++k) {
+    const long long ka = keys[k].frame, kb = keys[k + 1].frame;
+    const long long a = std::max(from, ka), b = std::min(to, kb);
+    if (a > b) continue;
+    const auto near = [&](double t) {
+      const double f = std::round(static_cast<double>(ka) + t * static_cast<double>(kb - ka));
+      for (long long g = static_cast<long long>(f) - 2; g <= static_cast<long long>(f) + 2; ++g) {
+        if (g >= a && g <= b) check(g);
+      }
+    };
+    near(0.0);
+    near(1.0);
+    check(a);
+    check(b);
+    const Camera& c0 = keys[k].camera;
+    const Camera& c1 = keys[k + 1].camera;
+    const glm::dvec3 v0 = glm::dvec3(c0.look_at) - glm::dvec3(c0.eye);
+    const glm::dvec3 dv = glm::dvec3(c1.look_at) - glm::dvec3(c1.eye) - v0;
+    if (glm::dot(dv, dv) > 0.0) near(std::clamp(-glm::dot(v0, dv) / glm::dot(dv, dv), 0.0, 1.0));
+    const glm::dvec3 u0(c0.up), du = glm::dvec3(c1.up) - u0;
+    // |cross(view direction, up)|^2 at t, what CameraRays requires above zero: small where up
+    // lines up with the view or is short.
+    const auto sine2 = [&](double t) {
+      const glm::dvec3 v = v0 + t * dv, u = u0 + t * du;
+      const double vv = glm::dot(v, v);
+      return vv > 0.0 ? glm::dot(glm::cross(v, u), glm::cross(v, u)) / vv : 0.0;
+    };
+    constexpr int kScan = 4096;
+    int best = 0;
+    for (int i = 1; i <= kScan; ++i) {
+      if (sine2(static_cast<double>(i) / kScan) < sine2(static_cast<double>(best) / kScan)) best = i;
+    }
+    double lo = std::max(0, best - 1) / static_cast<double>(kScan);
+    double hi = std::min(kScan, best + 1) / static_cast<double>(kScan);
+    for (int i = 0; i < 100; ++i) {  // golden-section search for the minimum within [lo, hi]
+      const double m1 = lo + (hi - lo) * 0.381966011250105, m2 = hi - (hi - lo) * 0.381966011250105;
+      if (sine2(m1) < sine2(m2)) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
+    }
+    near(0.5 * (lo + hi));
+  }
 }
 
 FramePose pose_at(const Scene& scene, int frame) {

@@ -11,6 +11,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "common/base/frame_range.h"
 #include "common/math/aabb.h"
 #include "common/math/camera.h"
 
@@ -24,7 +25,7 @@ inline constexpr double kMaxWorldCoordinate = 3.0e38;
 
 /// Largest frame number a scene may use (animation range and keys); frames are never negative
 /// (output file names number frames from 0). Keeps differences of frame numbers within int.
-inline constexpr int kMaxFrame = 1000000000;
+inline constexpr int kMaxFrame = kMaxFrameNumber;
 
 /// Phong material with a mirror term (Whitted). Colours are linear RGB.
 struct Material {

@@ -228,7 +228,7 @@ case_missing_out_folder() {
 }
 
 case_bad_output_checked_first() {
-  # Checked before the scene is loaded or a frame rendered: no image appears.
+  # Checked before any frame is rendered: no image appears.
   expect_error out_ext "--out" "o_0000.xyz" "unsupported extension '.xyz'" -- \
     "$render" --frames 0-1 --width 16 --height 16 --out "$work/o_####.xyz"
   mkdir "$work/taken.png"

@@ -1406,24 +1406,55 @@ def case_faults(c):
 def case_failing_workers(c):
     """Workers that fail the same work again and again (each reports a render error, reconnects
     and is handed the tiles again) make the master give up with exit 1 and the last error,
-    instead of cycling until killed."""
-    master, addr, _ = c.start_master("master", [*SMALL, *WHOLE, "--frames", "0-3", "--link-mbps", "1000"])
-    for i in range(8):
-        w = FakeWorker(addr, f"failing-{i}")
+    instead of cycling until killed; but not errors from peers that never authenticated, nor one
+    broken worker while another is still working."""
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*SMALL, *WHOLE, "--loop", "120", "--link-mbps", "1000",
+                                                "--stats-json", stats])
+
+    def fail_once(name, i):
+        w = FakeWorker(addr, name)
         w.join()
         w.tiles()
         text = f"render failed: injected failure {i}".encode()
         w.sock.sendall(message(MSG_ERROR, struct.pack("<H", ERROR_INTERNAL) + wire_str(text)))
         read_until_closed(w.sock, 10)
         w.close()
+
+    # (a) Render errors from peers that never authenticated do not count.
+    for i in range(10):
+        with socket.create_connection(split_address(addr), timeout=10) as sock:
+            sock.sendall(message(MSG_ERROR, struct.pack("<H", ERROR_INTERNAL) + wire_str(b"not a worker yet")))
+            read_until_closed(sock, 10)
+    # (b) One broken worker failing 10 times in a row while another, slow one holds tiles and
+    # has not failed: the run goes on.
+    slow = FakeWorker(addr, "slow")
+    slow.join()
+    slow.tiles()
+    for i in range(10):
+        fail_once("broken", i)
+    time.sleep(0.2)
+    if not master.alive():
+        fail("the master ended on one broken worker's errors while another worker was working")
+    # A good worker then renders (taking over the slow one's tiles once they are overdue), and
+    # every finished tile starts the count again.
+    good = c.start_worker("good", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 2, 60, "two frames", [master, good])
+    print(f"(a) 10 errors from unauthenticated peers and (b) 10 from one broken worker beside a slow one: "
+          f"the run went on ({len(read_stats(stats)[0])} frames)")
+    slow.close()
+    good.send(signal.SIGINT)
+    expect_exit(good, 0, 30, "the good worker's exit on SIGINT")
+    # (c) Only failing workers left: the master gives up after 8 errors in a row.
+    for i in range(8):
         if not master.alive():
-            if i < 7:
-                fail(f"the master ended after {i + 1} worker errors, before the 8th")
-            break
-    expect_exit(master, 1, 15, "give up after 8 worker errors in a row")
-    expect_log(master, r"8 worker errors in a row and no tile finished in between; the last, from .*injected failure 7",
+            fail(f"the master ended after {i} further worker errors, before the 8th")
+        fail_once(f"failing-{i}", i)
+    expect_exit(master, 1, 15, "give up after 8 worker errors in a row with no other worker left")
+    expect_log(master, r"8 worker errors in a row from 8 workers, no tile finished in between and no other worker "
+                       r"ready; the last, from .*injected failure 7",
                "the reason, with the last worker's error", timeout=1)
-    print("the master gave up after 8 worker errors in a row, naming the last")
+    print("(c) the master gave up after 8 worker errors in a row, naming the last")
 
 
 def case_master_dies(c):
@@ -1468,7 +1499,7 @@ def case_master_cli_errors(c):
         (["--out", c.path("x_####.xyz")], r"--out: .*x_0000\.xyz: unsupported extension '\.xyz'"),
         (["--out", ""], r"--out: the pattern is empty"),
         (["--frames", ""], r'--frames: expected A-B or A, got ""'),
-        (["--log-level", "loud"], r'--log-level: expected trace, debug, info, warn, error or off, got "loud"'),
+        (["--log-level", "loud"], r'--log-level: expected trace, debug, info, warn, error, critical or off, got "loud"'),
         ([degenerate], rf"{re.escape(degenerate)}: frame 0: camera: eye and look_at coincide"),
     ]
     for i, (args, pattern) in enumerate(cases):

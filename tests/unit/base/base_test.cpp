@@ -183,15 +183,18 @@ TEST(FrameRange, RefusesBadTextWithTheReason) {
   EXPECT_EQ(error_of([] { (void)parse_frame_range("1-x"); }), "--frames: expected A-B or A, got \"1-x\"");
   EXPECT_EQ(error_of([] { (void)parse_frame_range("5-2"); }), "--frames: 5-2 is an empty range");
   EXPECT_EQ(error_of([] { (void)parse_frame_range("0-99999999999999"); }),
-            "--frames: 0-99999999999999: a frame number out of range (at most 2147483647)");
+            "--frames: 0-99999999999999: frame numbers must be at most 1000000000");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("2147483647"); }),
+            "--frames: 2147483647: frame numbers must be at most 1000000000");
+  EXPECT_EQ(parse_frame_range("1000000000").last, 1000000000);
 }
 
 TEST(Logging, UnknownLevelIsAnError) {
   // spdlog reads an unknown word as "off": a typo silenced the whole log.
   EXPECT_EQ(error_of([] { init_logging("Info"); }),
-            "--log-level: expected trace, debug, info, warn, error or off, got \"Info\"");
+            "--log-level: expected trace, debug, info, warn, error, critical or off, got \"Info\"");
   EXPECT_EQ(error_of([] { init_logging("loud"); }),
-            "--log-level: expected trace, debug, info, warn, error or off, got \"loud\"");
+            "--log-level: expected trace, debug, info, warn, error, critical or off, got \"loud\"");
 }
 
 TEST(ProgressBar, CountsWithoutDrawingWhenNotForced) {

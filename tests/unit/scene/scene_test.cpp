@@ -442,6 +442,28 @@ TEST(Scene, CheckCamerasNamesTheFirstDegenerateFrame) {
   for (int frame : {0, 12, 15, 19, 25}) EXPECT_EQ(camera_at(scene, frame), pose_at(scene, frame).camera);
 }
 
+TEST(Scene, CheckCamerasFindsTheBadFrameOfALongSpan) {
+  // Keys a billion frames apart: too many to check one by one, so the frames near where the
+  // view is shortest and where up lines up with it are found and checked.
+  Scene scene = camera_through_look_at();
+  scene.animation.frame_end = 1000000000;
+  scene.animation.camera[0].frame = 0;
+  scene.animation.camera[1].frame = 1000000000;
+  EXPECT_EQ(camera_at(scene, 500000000).eye, camera_at(scene, 500000000).look_at);
+  EXPECT_EQ(check_cameras_error(scene, 0, 1000000000), "s.json: frame 500000000: camera: eye and look_at coincide");
+  EXPECT_EQ(check_cameras_error(scene, 0, 499999990), "");
+  // up swinging from +y to -y through zero at a third of the way.
+  Scene turning = test::one_triangle_scene();
+  turning.animation.frame_end = 900000000;
+  Camera a = turning.camera, b = turning.camera;
+  a.eye = b.eye = glm::vec3(0, 0, 5);
+  a.look_at = b.look_at = glm::vec3(0.0f);
+  a.up = glm::vec3(0, 1, 0);
+  b.up = glm::vec3(0, -2, 0);
+  turning.animation.camera = {CameraKey{0, a}, CameraKey{900000000, b}};
+  EXPECT_EQ(check_cameras_error(turning, 0, 900000000), "s.json: frame 300000000: camera: up is parallel to the view direction");
+}
+
 TEST(Scene, CheckCamerasWithoutKeysChecksTheSceneCamera) {
   Scene scene = test::one_triangle_scene();
   EXPECT_EQ(check_cameras_error(scene, 0, 100), "");
