@@ -143,13 +143,12 @@ int run(int argc, char** argv) {
 
   const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
   if (scene.width > 32768 || scene.height > 32768) {
-    throw rtc::Error("scene " + (scene_options.scene_path.empty() ? std::string("(built-in)") : scene_options.scene_path) +
+    throw rtc::Error("scene " + rtc::scene_label(scene_options) +
                      ": " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
                      " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
   }
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
-  rtc::check_cameras(scene, frames.first, frames.last,
-                     scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);
+  rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
@@ -158,10 +157,8 @@ int run(int argc, char** argv) {
   if (app.count("--tile") == 0 && temporal) o.tile_size = rtc::kTemporalTileSize;
   // Every frame open at once is held whole on the master (RGBA float and the EXR channels asked
   // for), and with temporal coherence one more: the canvas of every tile's latest pixels.
-  const std::uint64_t frame_bytes = std::uint64_t{static_cast<std::uint32_t>(scene.width)} *
-                                    static_cast<std::uint32_t>(scene.height) *
-                                    (16u + ((o.channels & rtc::kChannelDepth) ? 4u : 0u) +
-                                     ((o.channels & rtc::kChannelNormal) ? 12u : 0u));
+  const std::uint64_t frame_bytes = rtc::Image::bytes(scene.width, scene.height, (o.channels & rtc::kChannelDepth) != 0,
+                                                     (o.channels & rtc::kChannelNormal) != 0);
   const std::uint64_t frame_count = static_cast<std::uint64_t>(frames.last - frames.first) + 1;
   const std::uint64_t held =
       (o.loop_seconds > 0 ? static_cast<std::uint64_t>(o.frames_in_flight)

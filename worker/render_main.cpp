@@ -91,8 +91,7 @@ int run(int argc, char** argv) {
 
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
-  rtc::check_cameras(scene, frames.first, frames.last,
-                     scene_options.scene_path.empty() ? std::string("(built-in scene)") : scene_options.scene_path);
+  rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
   if (out_pattern.empty()) {
     out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");
     std::filesystem::create_directories("out");
@@ -106,11 +105,10 @@ int run(int argc, char** argv) {
   options.kd_clip = rtc::parse_kd_clip(kd_clip);
   options.aovs = !(no_depth && no_normal);
   // Each frame is held whole: RGBA float, and depth and normals unless both are left out.
-  rtc::check_memory(
-      "a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
-      std::uint64_t{static_cast<std::uint32_t>(scene.width)} * static_cast<std::uint32_t>(scene.height) *
-          (options.aovs ? 32u : 16u),
-      options.aovs ? "use a smaller --width/--height, or --no-depth --no-normal" : "use a smaller --width/--height");
+  rtc::check_memory("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
+                    rtc::Image::bytes(scene.width, scene.height, options.aovs, options.aovs),
+                    options.aovs ? "use a smaller --width/--height, or --no-depth --no-normal"
+                                 : "use a smaller --width/--height");
   options.specialise = !no_specialise;
   options.skip_empty = !no_skip_empty;
   options.instance_moving_meshes = !rebuild_moving;

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <sstream>
 
 #include <spdlog/spdlog.h>
 
@@ -79,13 +80,15 @@ std::optional<std::uint64_t> read_number(const std::string& path) {
   return std::nullopt;
 }
 
-/// The value of `key` in a "key value" file (memory.stat), or nullopt.
+/// The number after `key` on its line of a "key value [unit]" file (memory.stat,
+/// /proc/meminfo), or nullopt.
 std::optional<std::uint64_t> read_stat(const std::string& path, const std::string& key) {
   std::ifstream in(path);
-  std::string name;
-  std::uint64_t value = 0;
-  while (in >> name >> value) {
-    if (name == key) return value;
+  std::string line, name;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::uint64_t value = 0;
+    if (fields >> name >> value && name == key) return value;
   }
   return std::nullopt;
 }
@@ -135,17 +138,8 @@ std::optional<std::uint64_t> cgroup_memory_left() {
 }  // namespace
 
 std::optional<std::uint64_t> available_memory_bytes() {
-  std::optional<std::uint64_t> available;
-  std::ifstream meminfo("/proc/meminfo");
-  std::string key, unit;
-  std::uint64_t value = 0;
-  while (meminfo >> key >> value) {
-    std::getline(meminfo, unit);
-    if (key == "MemAvailable:") {
-      available = value * 1024;  // the kernel reports kB
-      break;
-    }
-  }
+  std::optional<std::uint64_t> available = read_stat("/proc/meminfo", "MemAvailable:");
+  if (available) *available *= 1024;  // the kernel reports kB
   if (const std::optional<std::uint64_t> cgroup = cgroup_memory_left()) {
     available = available ? std::min(*available, *cgroup) : *cgroup;
   }

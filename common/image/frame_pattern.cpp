@@ -101,19 +101,13 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
 std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames) {
   const std::filesystem::path first(expand_frame_pattern(pattern, first_frame, multiple_frames));
   const auto bad = [&](const std::string& reason) { return Error("--out: " + first.string() + ": " + reason); };
-  const std::filesystem::path folder = first.parent_path().empty() ? "." : first.parent_path();
   std::error_code ec;
-  if (!std::filesystem::is_directory(folder, ec)) {
-    throw bad(std::filesystem::exists(folder, ec) ? "'" + folder.string() + "' is not a folder"
-                                                  : "folder " + folder.string() + " does not exist");
-  }
+  if (std::filesystem::is_directory(first, ec)) throw bad("is a folder");
+  // write_image's own checks, then what only writing finds out.
+  if (const std::string problem = output_file_problem(first); !problem.empty()) throw bad(problem);
+  const std::filesystem::path folder = first.parent_path().empty() ? "." : first.parent_path();
   if (::access(folder.c_str(), W_OK) != 0) {
     throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
-  }
-  if (std::filesystem::is_directory(first, ec)) throw bad("is a folder");
-  if (!image_file_kind(first)) {
-    throw bad("unsupported extension '" + first.extension().string() +
-              "' (use .exr, .tif, .tiff, .png, .jpg, .jpeg or .ppm)");
   }
   return first;
 }

@@ -25,6 +25,13 @@ struct Image {
   /// Negative sizes are a caller bug (RTC_CHECK).
   Image(int w, int h, bool with_depth = false, bool with_normal = false);
 
+  /// The bytes Image(w, h, with_depth, with_normal) holds in its pixels: 16 a pixel for RGBA,
+  /// 4 for depth, 12 for normals (callers check a frame fits in memory before making one).
+  [[nodiscard]] static std::uint64_t bytes(int w, int h, bool with_depth, bool with_normal) {
+    return std::uint64_t{static_cast<std::uint32_t>(w)} * static_cast<std::uint32_t>(h) *
+           sizeof(float) * (4u + (with_depth ? 1u : 0u) + (with_normal ? 3u : 0u));
+  }
+
   [[nodiscard]] bool has_depth() const { return !depth.empty(); }
   [[nodiscard]] bool has_normal() const { return !normal.empty(); }
 
@@ -74,6 +81,10 @@ enum class ImageFileKind { Exr, Png, Tiff, Jpeg, Ppm };
 /// The kind write_image would write `path` as; std::nullopt for an unknown extension.
 [[nodiscard]] std::optional<ImageFileKind> image_file_kind(const std::filesystem::path& path);
 
+/// Why write_image cannot write `path` whatever the image: an extension it does not know, or a
+/// folder that does not exist or is not a folder; empty when neither.
+[[nodiscard]] std::string output_file_problem(const std::filesystem::path& path);
+
 /// Reads the first subimage of any OpenImageIO-readable file as linear float RGBA: 8- and
 /// 16-bit integer files are sRGB-decoded on RGB (8-bit exactly, by srgb8_to_linear) unless
 /// the file says it is linear, float files are taken as linear; alpha is 1 when absent, gray
@@ -117,9 +128,9 @@ std::uint8_t linear_to_unorm8(float value);
 /// '%' placeholders, any other '%' sequence, or a negative frame.
 std::string expand_frame_pattern(const std::string& pattern, int frame, bool multiple_frames);
 
-/// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, an
-/// extension write_image does not know, a folder that does not exist, or a first frame's name
-/// that is a folder throw rtc::Error ("--out: <name>: <reason>"). Returns the first frame's name.
+/// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, a first
+/// frame's name that is a folder, output_file_problem's, or a folder this process cannot write
+/// to throw rtc::Error ("--out: <name>: <reason>"). Returns the first frame's name.
 std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames);
 
 /// 64-bit FNV-1a over the width, height, which channels are present and the bits of every

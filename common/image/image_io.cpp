@@ -249,24 +249,28 @@ std::optional<ImageFileKind> image_file_kind(const std::filesystem::path& path) 
   return format->kind;
 }
 
+std::string output_file_problem(const fs::path& path) {
+  if (find_format(path) == nullptr) {
+    return fmt::format("unsupported extension '{}' (use .exr, .png, .tif, .tiff, .jpg, .jpeg or .ppm)",
+                       path.extension().string());
+  }
+  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    return fs::exists(folder, ec) ? fmt::format("'{}' is not a folder", folder.string())
+                                  : fmt::format("folder '{}' does not exist", folder.string());
+  }
+  return {};
+}
+
 void write_image(const fs::path& path, const Image& image, const ImageWriteOptions& options) {
   const std::string name = path.string();
   const auto fail = [&](const std::string& reason) {
     return Error(fmt::format("cannot write image '{}': {}", name, reason));
   };
   if (const std::string problem = shape_problem(image); !problem.empty()) throw fail(problem);
+  if (const std::string problem = output_file_problem(path); !problem.empty()) throw fail(problem);
   const FileFormat* format = find_format(path);
-  if (format == nullptr) {
-    throw fail(fmt::format("unsupported extension '{}' (use .exr, .png, .tif, .tiff, .jpg, "
-                           ".jpeg or .ppm)",
-                           path.extension().string()));
-  }
-  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
-  std::error_code ec;
-  if (!fs::is_directory(folder, ec)) {
-    throw fail(fs::exists(folder, ec) ? fmt::format("'{}' is not a folder", folder.string())
-                                      : fmt::format("folder '{}' does not exist", folder.string()));
-  }
 
   Encoded encoded = encode(format->kind, image, options);
   for (const auto& [key, value] : options.metadata) encoded.spec.attribute(key, value);
@@ -282,6 +286,7 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
   if (const std::string problem = flush_to_disk(temp.path()); !problem.empty()) {
     throw fail(fmt::format("cannot flush '{}': {}", temp.path().string(), problem));
   }
+  std::error_code ec;
   fs::rename(temp.path(), path, ec);
   if (ec) {
     throw fail(fmt::format("cannot rename '{}' to it: {}", temp.path().string(), ec.message()));

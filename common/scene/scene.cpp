@@ -202,8 +202,12 @@ void check_cameras(const Scene& scene, int first, int last, const std::string& s
     };
     constexpr int kScan = 4096;
     int best = 0;
+    double best_value = sine2(0.0);
     for (int i = 1; i <= kScan; ++i) {
-      if (sine2(static_cast<double>(i) / kScan) < sine2(static_cast<double>(best) / kScan)) best = i;
+      if (const double value = sine2(static_cast<double>(i) / kScan); value < best_value) {
+        best = i;
+        best_value = value;
+      }
     }
     double lo = std::max(0, best - 1) / static_cast<double>(kScan);
     double hi = std::min(kScan, best + 1) / static_cast<double>(kScan);

@@ -21,6 +21,11 @@ struct SceneCliOptions {
   std::string intersector;  ///< empty: the scene's
 };
 
+/// How messages name the scene: its file, or "(built-in default)".
+inline std::string scene_label(const SceneCliOptions& o) {
+  return o.scene_path.empty() ? std::string("(built-in default)") : o.scene_path;
+}
+
 /// Registers SCENE and --width --height --spp --max-depth --min-weight --intersector on `app`.
 inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
   app.add_option("scene", o.scene_path,
@@ -66,7 +71,7 @@ inline Scene load_scene_from_cli(const SceneCliOptions& o) {
     scene.settings.intersector = o.intersector == "watertight" ? Intersector::Watertight : Intersector::Wald;
   }
   spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
-               o.scene_path.empty() ? "(built-in default)" : o.scene_path, scene.meshes.size(), scene.triangle_count(),
+               scene_label(o), scene.meshes.size(), scene.triangle_count(),
                scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
   return scene;
 }

@@ -587,8 +587,9 @@ TEST_F(OutputPattern, CheckedBeforeRendering) {
   EXPECT_EQ(error_of(d + "/f_####.exr", true), "");
   EXPECT_EQ(error_of(d + "/f.PNG", false), "");
   EXPECT_EQ(error_of(d + "/f_####.xyz", true),
-            "--out: " + d + "/f_0003.xyz: unsupported extension '.xyz' (use .exr, .tif, .tiff, .png, .jpg, .jpeg or .ppm)");
-  EXPECT_EQ(error_of(d + "/missing/f.png", false), "--out: " + d + "/missing/f.png: folder " + d + "/missing does not exist");
+            "--out: " + d + "/f_0003.xyz: unsupported extension '.xyz' (use .exr, .png, .tif, .tiff, .jpg, .jpeg or .ppm)");
+  EXPECT_EQ(error_of(d + "/missing/f.png", false),
+            "--out: " + d + "/missing/f.png: folder '" + d + "/missing' does not exist");
   fs::create_directories(dir_ / "taken.png");
   EXPECT_EQ(error_of(d + "/taken.png", false), "--out: " + d + "/taken.png: is a folder");
   {
