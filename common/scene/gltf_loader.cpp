@@ -21,6 +21,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -117,6 +118,30 @@ class GltfReader {
                                                       length, base_dir)
                         : loader.LoadASCIIFromString(&model_, &err, &warn, text.data(), length, base_dir);
     if (!ok) fail(err.empty() ? std::string("not a glTF 2.0 file") : trimmed(err));
+    check_version();
+  }
+
+  // glTF 2.0, section 3.2 (asset): a client must not load an asset whose major version it does
+  // not support, nor one whose minVersion is above the version it supports (2.0 here). TinyGLTF
+  // reads both strings without checking them.
+  void check_version() const {
+    const auto parsed = [](const std::string& v) -> std::optional<std::pair<int, int>> {
+      const std::size_t dot = v.find('.');
+      if (dot == std::string::npos || dot == 0 || dot + 1 == v.size() || dot > 4 || v.size() - dot > 5) return std::nullopt;
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        if (i != dot && (v[i] < '0' || v[i] > '9')) return std::nullopt;
+      }
+      return std::pair{std::stoi(v.substr(0, dot)), std::stoi(v.substr(dot + 1))};
+    };
+    const std::string& version = model_.asset.version;
+    const auto v = parsed(version);
+    if (!v) fail("asset.version '" + version + "' is not of the form <major>.<minor>");
+    if (v->first != 2) fail("version " + version + " is not supported (rtc reads glTF 2.x)");
+    const std::string& min_version = model_.asset.minVersion;
+    if (min_version.empty()) return;
+    const auto m = parsed(min_version);
+    if (!m) fail("asset.minVersion '" + min_version + "' is not of the form <major>.<minor>");
+    if (*m > std::pair{2, 0}) fail("asset.minVersion " + min_version + " is above 2.0, the version rtc reads");
   }
 
   static std::string trimmed(std::string s) {

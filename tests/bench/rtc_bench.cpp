@@ -545,6 +545,10 @@ int run(int argc, char** argv) {
       for (rtc::Material& m : sc.materials) m.reflective = false;
     }
     if (spp > 0) sc.settings.spp = spp;
+    // The frame timed (the first), checked as rtc-render checks the frames it renders, so that a
+    // degenerate camera is named with the file instead of failing inside the first trace.
+    rtc::check_cameras(sc, sc.animation.frame_begin, sc.animation.frame_begin,
+                       scene_path.empty() ? std::string("(built-in default)") : path.string());
     return sc;
   };
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());

@@ -277,6 +277,15 @@ JSON
   [[ -z $(find "$work" -name 'm_*') ]] || fail "frames were written for a scene whose camera degenerates at frame 1"
 }
 
+case_bench_degenerate_camera() {
+  # rtc-bench times the scene's first frame and checks its camera as rtc-render does, naming the
+  # file (it used to fail inside the first trace with the camera's message alone).
+  [[ -n $bench ]] || fail "no rtc-bench given"
+  printf 'v\nfrom 0 0 0\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 16 16\nl 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 -5\n1 0 -5\n0 1 -5\n' >"$work/cam.nff"
+  expect_error bench "$work/cam.nff" "frame 0" "eye and look_at coincide" -- \
+    "$bench" "$work/cam.nff" --mode primary --reps 1 --build-reps 1
+}
+
 case_bad_isa() {
   expect_error isa '"avx9"' "unknown ISA" -- \
     "$render" --frames 0 --width 8 --height 8 --isa avx9 --out "$work/o.png"

@@ -573,6 +573,35 @@ TEST(GltfLoader, StripsAndFansFollowTheSpecification) {
   }
 }
 
+// glTF 2.0, section 3.2: a major version other than 2, or a minVersion above 2.0, must not be
+// loaded (TinyGLTF took both); 2.1 is a 2.x asset and loads.
+TEST(GltfLoader, VersionIsChecked) {
+  TempDir dir;
+  const auto with_asset = [](const std::string& asset) {
+    std::string gltf = test::small_gltf();
+    const std::string old = R"("asset": {"version": "2.0"})";
+    gltf.replace(gltf.find(old), old.size(), "\"asset\": " + asset);
+    return gltf;
+  };
+  // The error with the temporary folder taken off the file's name.
+  const auto error = [&](const std::string& name, const std::string& asset) {
+    const std::string message = error_of([&] { (void)load_gltf(dir.write(name, with_asset(asset))); });
+    return message.substr(message.rfind('/') + 1);
+  };
+  EXPECT_EQ(load_gltf(dir.write("v21.gltf", with_asset(R"({"version": "2.1"})"))).mesh.triangles.size(), 2u);
+  EXPECT_EQ(load_gltf(dir.write("min20.gltf", with_asset(R"({"version": "2.1", "minVersion": "2.0"})")))
+                .mesh.triangles.size(),
+            2u);
+  EXPECT_EQ(error("v3.gltf", R"({"version": "3.0"})"),
+            "v3.gltf: glTF: version 3.0 is not supported (rtc reads glTF 2.x)");
+  EXPECT_EQ(error("v1.gltf", R"({"version": "1.0"})"),
+            "v1.gltf: glTF: version 1.0 is not supported (rtc reads glTF 2.x)");
+  EXPECT_EQ(error("two.gltf", R"({"version": "two"})"),
+            "two.gltf: glTF: asset.version 'two' is not of the form <major>.<minor>");
+  EXPECT_EQ(error("min21.gltf", R"({"version": "2.1", "minVersion": "2.1"})"),
+            "min21.gltf: glTF: asset.minVersion 2.1 is above 2.0, the version rtc reads");
+}
+
 TEST(GltfLoader, GarbageIsRejected) {
   TempDir dir;
   EXPECT_NE(error_of([&] {
