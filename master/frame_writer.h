@@ -22,6 +22,10 @@ class FrameWriter {
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
 
+  /// The master opens no new frame while this many frames wait to be written or are being
+  /// written, so that at most kMaxPending - 1 + frames in flight are ever held here.
+  static constexpr std::size_t kMaxPending = 4;
+
   void submit(std::string path, Image image);
   [[nodiscard]] std::size_t pending() const;
   /// Blocks until every submitted frame is written (or failed).

@@ -17,6 +17,7 @@
 #include "common/image/pixel_format.h"
 #include "common/render/temporal_cli.h"
 #include "common/scene/scene_cli.h"
+#include "master/frame_writer.h"
 #include "master/master_server.h"
 #include "protocol/auth.h"
 #include "protocol/message.h"
@@ -156,14 +157,17 @@ int run(int argc, char** argv) {
   // With temporal coherence the tile is the unit retraced: finer tiles retrace less.
   if (app.count("--tile") == 0 && temporal) o.tile_size = rtc::kTemporalTileSize;
   // Every frame open at once is held whole on the master (RGBA float and the EXR channels asked
-  // for), and with temporal coherence one more: the canvas of every tile's latest pixels.
+  // for), and so is every finished frame waiting for the frame writer (with --out: a frame opens
+  // only while fewer than FrameWriter::kMaxPending wait, so at most that many less one besides
+  // the frames in flight); with temporal coherence one more: the canvas of every tile's latest
+  // pixels.
   const std::uint64_t frame_bytes = rtc::Image::bytes(scene.width, scene.height, (o.channels & rtc::kChannelDepth) != 0,
                                                      (o.channels & rtc::kChannelNormal) != 0);
   const std::uint64_t frame_count = static_cast<std::uint64_t>(frames.last - frames.first) + 1;
+  const std::uint64_t at_once = static_cast<std::uint64_t>(o.frames_in_flight) +
+                                (o.out_pattern.empty() ? 0u : rtc::FrameWriter::kMaxPending - 1);
   const std::uint64_t held =
-      (o.loop_seconds > 0 ? static_cast<std::uint64_t>(o.frames_in_flight)
-                          : std::min<std::uint64_t>(static_cast<std::uint64_t>(o.frames_in_flight), frame_count)) +
-      (temporal ? 1u : 0u);
+      (o.loop_seconds > 0 ? at_once : std::min<std::uint64_t>(at_once, frame_count)) + (temporal ? 1u : 0u);
   rtc::check_memory(std::to_string(held) + (held == 1 ? " frame" : " frames") + " of " + std::to_string(scene.width) +
                         "x" + std::to_string(scene.height) + " held at once",
                     frame_bytes * held, "use a smaller --width/--height or fewer --frames-in-flight");

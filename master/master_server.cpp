@@ -689,7 +689,7 @@ class Master {
   // A new frame can be opened right now (not only "more frames will come").
   bool can_open_frame() const {
     return run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) &&
-           more_frames() && (!writer_ || writer_->pending() < 4);
+           more_frames() && (!writer_ || writer_->pending() < FrameWriter::kMaxPending);
   }
 
   bool more_frames() const {

@@ -1514,6 +1514,31 @@ def case_master_cli_errors(c):
         if os.path.exists(ready):
             fail(f"rtc-master {' '.join(args)} started listening before failing")
         print(f"ok: {' '.join(args)} -> {pattern}")
+    _master_memory_counts_the_writer_queue(c)
+
+
+def _master_memory_counts_the_writer_queue(c):
+    """With --out, up to FrameWriter::kMaxPending - 1 finished frames wait to be written besides
+    the frames in flight: a frame a third of the available memory passes with one frame in
+    flight, but not with the writer's three more (the check used to count one frame)."""
+    with open("/proc/meminfo") as f:
+        available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    width = 32768
+    height = max(1, min(32768, int(available / 2.5 / (32 * width))))  # 32 bytes a pixel with depth and normal
+    if 4 * 32 * width * height <= available:
+        print(f"skipped the writer-queue memory case: {available / 1e9:.1f} GB available is too much for 32768-pixel frames")
+        return
+    ready = c.path("ready-memory")
+    args = ["--width", str(width), "--height", str(height), "--frames", "0-9", "--frames-in-flight", "1", "--temporal", "off",
+            "--out", c.path("big_####.exr"), "--listen", "127.0.0.1:0", "--ready-file", ready]
+    p = c.spawn("master-memory", [c.args.master, *args])
+    rc = p.wait(30, "fail on a frame too big for the writer queue")
+    pattern = rf"4 frames of {width}x{height} held at once needs at least .* GB available: use a smaller"
+    if rc != 1 or not re.search(pattern, p.log()):
+        fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1 and /{pattern}/ in:\n{p.log()}")
+    if os.path.exists(ready):
+        fail("rtc-master started listening with frames too big for its memory")
+    print(f"ok: {width}x{height} with --out and one frame in flight -> 4 frames held at once")
 
 
 def _processes_with(text):
