@@ -251,8 +251,10 @@ std::optional<ImageFileKind> image_file_kind(const std::filesystem::path& path) 
 
 std::string output_file_problem(const fs::path& path) {
   if (find_format(path) == nullptr) {
-    return fmt::format("unsupported extension '{}' (use .exr, .png, .tif, .tiff, .jpg, .jpeg or .ppm)",
-                       path.extension().string());
+    constexpr const char* kFormats = ".exr, .png, .tif, .tiff, .jpg, .jpeg or .ppm";
+    return path.extension().empty()
+               ? fmt::format("the name has no extension to choose the format by (use {})", kFormats)
+               : fmt::format("unsupported extension '{}' (use {})", path.extension().string(), kFormats);
   }
   const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   std::error_code ec;

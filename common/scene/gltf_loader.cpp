@@ -56,10 +56,12 @@ double max_abs(const glm::dvec3& v) {
   return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
 }
 
-// TinyGLTF's file access: FileBytes for reads, nothing written, paths as given.
+// TinyGLTF's file access: FileBytes for reads, nothing written, paths as given. Whatever exists
+// is passed on to FileBytes, which says why a folder or a device cannot be read (TinyGLTF's own
+// message for them would be "File not found").
 bool file_exists(const std::string& path, void*) {
   std::error_code ec;
-  return std::filesystem::is_regular_file(path, ec) || std::filesystem::is_fifo(path, ec);
+  return std::filesystem::exists(path, ec);
 }
 std::string expand_path(const std::string& path, void*) { return path; }
 bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {

@@ -588,6 +588,9 @@ TEST_F(OutputPattern, CheckedBeforeRendering) {
   EXPECT_EQ(error_of(d + "/f.PNG", false), "");
   EXPECT_EQ(error_of(d + "/f_####.xyz", true),
             "--out: " + d + "/f_0003.xyz: unsupported extension '.xyz' (use .exr, .png, .tif, .tiff, .jpg, .jpeg or .ppm)");
+  EXPECT_EQ(error_of("/dev/full", false),
+            "--out: /dev/full: the name has no extension to choose the format by (use .exr, .png, .tif, .tiff, .jpg, "
+            ".jpeg or .ppm)");
   EXPECT_EQ(error_of(d + "/missing/f.png", false),
             "--out: " + d + "/missing/f.png: folder '" + d + "/missing' does not exist");
   fs::create_directories(dir_ / "taken.png");

@@ -602,6 +602,18 @@ TEST(GltfLoader, VersionIsChecked) {
             "min21.gltf: glTF: asset.minVersion 2.1 is above 2.0, the version rtc reads");
 }
 
+// A buffer URI naming a folder is named as one (TinyGLTF's own message was "File not found").
+TEST(GltfLoader, BufferUriNamingAFolderIsNamed) {
+  TempDir dir;
+  (void)dir.write("sub/keep", "x");
+  std::string gltf = test::small_gltf();
+  const std::string uri = R"("uri": "data:)";
+  gltf.replace(gltf.find(uri), gltf.find('"', gltf.find(uri) + uri.size()) + 1 - gltf.find(uri), R"("uri": "sub")");
+  const std::string message = error_of([&] { (void)load_gltf(dir.write("folder.gltf", gltf)); });
+  EXPECT_NE(message.find("folder.gltf: glTF: "), std::string::npos) << message;
+  EXPECT_NE(message.find("sub: cannot read the file (a directory?)"), std::string::npos) << message;
+}
+
 TEST(GltfLoader, GarbageIsRejected) {
   TempDir dir;
   EXPECT_NE(error_of([&] {
