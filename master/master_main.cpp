@@ -87,7 +87,7 @@ int run(int argc, char** argv) {
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
 

@@ -1,7 +1,10 @@
 // rtc-render: the local frame-dump CLI. Renders frames of a scene (or the built-in one) on all
 // cores and writes them as EXR/PNG through OpenImageIO.
+#include <signal.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -9,6 +12,7 @@
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -30,10 +34,59 @@
 
 namespace {
 
+// Ctrl-C, SIGTERM and SIGHUP. While a frame renders nothing of it is on disk, so a signal then
+// ends the program at once (the frames written before are whole). While a frame is written (to
+// a temporary file that is then renamed into place) the write is finished first and the program
+// stops after it, so that no temporary file or half a frame is left behind. g_phase: 0 rendering,
+// 1 writing, 2 ending; g_stop_signal is set before the phase is read (see on_stop_signal).
+std::atomic<int> g_phase{0};
+std::atomic<int> g_stop_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free);
+
+extern "C" void on_stop_signal(int signo) {
+  g_stop_signal.store(signo);
+  int rendering = 0;
+  if (g_phase.compare_exchange_strong(rendering, 2)) {
+    static const char kMessage[] = "\nrtc-render: interrupted; the frames written before it are complete\n";
+    (void)!::write(STDERR_FILENO, kMessage, sizeof kMessage - 1);
+    ::_exit(128 + signo);
+  }
+  // Writing (or already ending): the write finishes, then the frame loop stops.
+}
+
+/// A signal ignored when the program started (nohup's SIGHUP, SIGINT in a shell's background
+/// job) stays ignored.
+void install_stop_handlers() {
+  struct sigaction action {};
+  action.sa_handler = on_stop_signal;
+  sigemptyset(&action.sa_mask);
+  for (const int signo : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction old {};
+    if (::sigaction(signo, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
+    ::sigaction(signo, &action, nullptr);
+  }
+}
+
+/// Writes a frame with stop signals held back until the file is in place.
+void write_frame(const std::string& path, const rtc::Image& image, const rtc::ImageWriteOptions& options) {
+  int rendering = 0;
+  if (!g_phase.compare_exchange_strong(rendering, 1)) {
+    for (;;) ::pause();  // a handler is ending the program
+  }
+  try {
+    rtc::write_image(path, image, options);
+  } catch (...) {
+    g_phase.store(0);
+    throw;
+  }
+  g_phase.store(0);
+}
+
 int run(int argc, char** argv) {
   // Before any thread starts: a build's freed scratch stays for the next (process_memory.h).
   const rtc::FreedMemoryPolicy freed_memory = rtc::keep_freed_memory();
-  CLI::App app{"rtc-render: render frames of a scene to image files (EXR, PNG) on this machine"};
+  install_stop_handlers();
+  CLI::App app{"rtc-render: render frames of a scene to image files (EXR, TIFF, PNG, JPEG, PPM) on this machine"};
   rtc::SceneCliOptions scene_options;
   std::string frames_text;
   std::string out_pattern;
@@ -46,7 +99,7 @@ int run(int argc, char** argv) {
   app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
                  "output file pattern; #### is the zero-padded frame number; the extension picks the "
-                 "format (.exr, .png) (default: out/<scene>_####.png)");
+                 "format (.exr, .tif/.tiff, .png, .jpg/.jpeg, .ppm) (default: out/<scene>_####.png)");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel; default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));
@@ -64,7 +117,7 @@ int run(int argc, char** argv) {
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
   CLI11_PARSE(app, argc, argv);
 
   rtc::init_logging(log_level);
@@ -136,6 +189,8 @@ int run(int argc, char** argv) {
     }
   }
   double last_full_ms = 0;
+  rtc::Timer run_timer;
+  std::string last_written;
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
     const double cpu_start = rtc::process_cpu_ms();
@@ -179,7 +234,8 @@ int run(int argc, char** argv) {
       }
     }
     const std::string path = rtc::expand_frame_pattern(out_pattern, f, multiple);
-    rtc::write_image(path, *image, write_options);
+    write_frame(path, *image, write_options);
+    last_written = path;
     const double seconds = std::max(render_ms, 1e-3) / 1000.0;
     std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms (cpu %.0f ms), render %.0f ms (cpu %.0f ms), %.2f M rays/s "
                 "(%llu primary, %llu of them skipped as empty space, %llu shadow, %llu reflection)%s\n",
@@ -189,6 +245,16 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(counts.shadow), static_cast<unsigned long long>(counts.reflection),
                 temporal_note.c_str());
     std::fflush(stdout);
+    if (const int signo = g_stop_signal.load(); signo != 0) {
+      std::fprintf(stderr, "rtc-render: interrupted by %s while frame %d was written: stopped after it (%s)%s\n",
+                   signo == SIGINT ? "SIGINT" : signo == SIGTERM ? "SIGTERM" : "SIGHUP", f, path.c_str(),
+                   f < frames.last ? fmt::format("; frames {}-{} not rendered", f + 1, frames.last).c_str() : "");
+      return 128 + signo;
+    }
+  }
+  if (multiple) {
+    std::printf("rendered frames %d-%d (%d frames) in %.1f s; the last: %s\n", frames.first, frames.last,
+                frames.last - frames.first + 1, run_timer.elapsed_ms() / 1000.0, last_written.c_str());
   }
   return 0;
 }

@@ -37,7 +37,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   app.add_flag("--stay", o.stay, "when the master says goodbye, wait for the next one instead of exiting");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   rtc::init_logging(log_level);
   rtc::log_freed_memory_policy(freed_memory);

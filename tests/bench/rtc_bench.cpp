@@ -371,7 +371,7 @@ int run(int argc, char** argv) {
   app.add_flag("--json", json, "one JSON object per line per mode instead of the table");
   app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
   app.add_flag("--cpu-time", rtc::bench::g_cpu_time,
                "time by process CPU time (summed over threads), not wall time: for A/B runs on a busy machine");
   bool no_warm_up = false;
