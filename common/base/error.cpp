@@ -6,6 +6,8 @@
 
 namespace rtc {
 
+Error::~Error() = default;
+
 std::string at_location(std::string_view file, std::uint64_t line, std::string_view message) {
   std::string out(file);
   if (line > 0) {

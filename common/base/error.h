@@ -13,6 +13,13 @@ namespace rtc {
 class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& message) : std::runtime_error(message) {}
+  // Out of line (error.cpp): the class's vtable, type info and destructor then live in rtc_base
+  // alone. Inline, every object file that throws one defined them, and the linker could take
+  // them from any member of a static library, dragging that member's own dependencies (such as
+  // OpenImageIO's 260 libraries) into programs that never use them.
+  ~Error() override;
+  Error(const Error&) = default;
+  Error& operator=(const Error&) = default;
 };
 
 /// "file:line: message" (line 0 leaves the line out).
