@@ -7,7 +7,9 @@
 #   N      workers (default: the machine's core count); each gets cores/N threads (at least 1)
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
-# Frames go to out/cluster/<scene>_####.png unless the extra args give --out.
+# Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the file's
+# name, or its folder's for a scene pack's view.json); --no-out among them (taken by this script)
+# writes no frames at all: a frame-rate run. --min-workers among them replaces the default, N.
 # Binaries come from $RTC_BUILD_DIR (default build/release); they are built when missing.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -44,13 +46,27 @@ if [ ! -x "$build/master/rtc-master" ] || [ ! -x "$build/worker/rtc-worker" ]; t
 fi
 
 has_out=0
-for a in "${extra[@]}"; do [ "$a" = "--out" ] && has_out=1; done
+has_min_workers=0
+master_args=()
+for a in "${extra[@]}"; do
+  case "$a" in
+    --no-out) has_out=1; continue ;;  # this script's own: no --out added, frames not written
+    --out | --out=*) has_out=1 ;;
+    --min-workers | --min-workers=*) has_min_workers=1 ;;
+  esac
+  master_args+=("$a")
+done
 if [ "$has_out" = 0 ]; then
   name="default"
-  [ ${#scene[@]} -gt 0 ] && name="$(basename "${scene[0]%.*}")"
+  if [ ${#scene[@]} -gt 0 ]; then
+    name="$(basename "${scene[0]%.*}")"
+    # A scene pack's view.json is named by its folder, as rtc-render names it.
+    [ "$name" = "view" ] && name="$(basename "$(cd "$(dirname "${scene[0]}")" && pwd)")"
+  fi
   mkdir -p out/cluster
-  extra+=(--out "out/cluster/${name}_####.png")
+  master_args+=(--out "out/cluster/${name}_####.png")
 fi
+[ "$has_min_workers" = 1 ] || master_args+=(--min-workers "$workers")
 
 cores="$(nproc)"
 threads=$(( cores / workers ))
@@ -58,6 +74,7 @@ threads=$(( cores / workers ))
 run_dir="$(mktemp -d "${TMPDIR:-/tmp}/rtc-local.XXXXXX")"
 master_pid=""
 worker_pids=()
+workers_started=0
 
 cleanup() {
   local status=$?
@@ -72,7 +89,7 @@ cleanup() {
     kill -KILL "$pid" 2>/dev/null || true
     wait "$pid" 2>/dev/null || true
   done
-  if [ "$status" -ne 0 ]; then
+  if [ "$status" -ne 0 ] && [ "$workers_started" = 1 ]; then
     echo "launch-local: worker logs kept in $run_dir" >&2
   else
     rm -rf "$run_dir"
@@ -85,8 +102,7 @@ trap cleanup EXIT
 interrupted=0
 trap 'interrupted=1; echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT TERM
 
-"$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" \
-  --min-workers "$workers" "${extra[@]}" &
+"$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
 master_pid=$!
 for _ in $(seq 1 600); do
   [ -s "$run_dir/address" ] && break
@@ -95,7 +111,9 @@ for _ in $(seq 1 600); do
 done
 [ -s "$run_dir/address" ] || { echo "launch-local: the master did not start listening within 60 s" >&2; exit 1; }
 address="$(cat "$run_dir/address")"
-echo "launch-local: master on $address; starting $workers workers with $threads threads each (logs in $run_dir)"
+echo "launch-local: master on $address; starting $workers worker$([ "$workers" = 1 ] || echo s) with $threads" \
+  "thread$([ "$threads" = 1 ] || echo s) each (logs in $run_dir)"
+workers_started=1
 for i in $(seq 1 "$workers"); do
   setsid "$build/worker/rtc-worker" --connect "$address" --threads "$threads" --name "local-$i" \
     --retry-seconds 10 > "$run_dir/worker-$i.log" 2>&1 &

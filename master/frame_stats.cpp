@@ -87,7 +87,10 @@ std::string frame_json(const FrameStats& s) {
 
 void RunAccumulator::add(const FrameStats& f) {
   fps_.push_back(static_cast<float>(f.fps()));
-  if (f.bound_fps() > 0) bound_fps_.push_back(static_cast<float>(f.bound_fps()));
+  if (f.bound_fps() > 0) {
+    bound_fps_.push_back(static_cast<float>(f.bound_fps()));
+    achieved_.push_back(static_cast<float>(f.fps() / f.bound_fps()));
+  }
   bytes_.push_back(static_cast<float>(f.wire_bytes));
   raw_ += f.raw_bytes;
   pixel_ += f.pixel_bytes;
@@ -114,6 +117,8 @@ RunSummary RunAccumulator::summarize(double total_s) const {
   r.median_fps = median_of(fps_);
   r.mean_fps = total_s > 0 ? fps_.size() / total_s : 0;
   r.median_bound_fps = median_of(bound_fps_);
+  r.achieved_vs_bound = median_of(achieved_);
+  r.bounded_frames = static_cast<std::uint32_t>(achieved_.size());
   r.median_bytes_per_frame = median_of(bytes_);
   r.compression_ratio = pixel_ > 0 ? static_cast<double>(raw_) / pixel_ : 1.0;
   r.duplicate_tiles = duplicate_tiles_;
@@ -134,12 +139,29 @@ RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
 }
 
 std::string format_summary(const RunSummary& s) {
-  std::string out = fmt::format("summary: {} frames in {:.2f} s: median {:.2f} fps, mean {:.2f} fps; {:.3f} MB/frame ({}+{} {:.2f}:1)",
-                                s.frames, s.total_s, s.median_fps, s.mean_fps, s.median_bytes_per_frame / 1e6,
+  std::string frames = fmt::format("{} frames", s.frames);
+  if (s.frames_planned > 0 && s.frames < s.frames_planned) {
+    frames = fmt::format("{} of {} frames ({}: {} not rendered)", s.frames, s.frames_planned,
+                         s.stopped.empty() ? std::string("stopped") : s.stopped, s.frames_planned - s.frames);
+  } else if (!s.stopped.empty()) {
+    frames += fmt::format(" ({})", s.stopped);
+  }
+  std::string out = fmt::format("summary: {} in {:.2f} s: median {:.2f} fps, mean {:.2f} fps; {:.3f} MB/frame ({}+{} {:.2f}:1)",
+                                frames, s.total_s, s.median_fps, s.mean_fps, s.median_bytes_per_frame / 1e6,
                                 s.wire_format, s.compression, s.compression_ratio);
   if (s.median_bound_fps > 0) {
+    // Both medians over the same frames: those that sent pixels.
     out += fmt::format("; link bound {:.2f} fps ({}), achieved {:.1f}% of it", s.median_bound_fps,
-                       link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source), 100.0 * s.median_fps / s.median_bound_fps);
+                       link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source), 100.0 * s.achieved_vs_bound);
+    if (s.bounded_frames < s.frames) {
+      out += fmt::format(" (over the {} frames that sent pixels; {} sent none)", s.bounded_frames, s.frames - s.bounded_frames);
+    }
+    if (s.achieved_vs_bound > 1.0) {
+      out += s.link_source == "given"
+                 ? std::string(" (above the bound: the link is faster than --link-mbps says)")
+                 : std::string(" (above the bound: the link measured slower than it is, as when a worker was still "
+                               "loading the scene during the probe; --link-mbps gives the real figure)");
+    }
   } else {
     out += "; link bound unknown";
   }
@@ -157,11 +179,14 @@ std::string summary_json(const RunSummary& s) {
   nlohmann::json j;
   j["type"] = "summary";
   j["frames"] = s.frames;
+  if (s.frames_planned > 0) j["frames_planned"] = s.frames_planned;
+  j["stopped"] = s.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.stopped);
   j["total_s"] = s.total_s;
   j["median_fps"] = s.median_fps;
   j["mean_fps"] = s.mean_fps;
   j["median_bound_fps"] = s.median_bound_fps;
-  j["achieved_vs_bound"] = s.median_bound_fps > 0 ? s.median_fps / s.median_bound_fps : 0.0;
+  j["achieved_vs_bound"] = s.achieved_vs_bound;
+  j["bounded_frames"] = s.bounded_frames;
   j["median_bytes_per_frame"] = s.median_bytes_per_frame;
   j["compression_ratio"] = s.compression_ratio;
   j["worker_share"] = s.worker_share;

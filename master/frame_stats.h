@@ -62,9 +62,15 @@ struct FrameStats {
 
 struct RunSummary {
   std::uint32_t frames = 0;
+  std::uint32_t frames_planned = 0;  ///< the frames asked for (0: a --loop run); filled by the master
+  std::string stopped;               ///< why the run ended early ("stopped by SIGINT"); empty if it did not
   double total_s = 0;
   double median_fps = 0, mean_fps = 0;
   double median_bound_fps = 0;  ///< 0 when unknown
+  /// fps / bound fps, the median over the frames with a bound (those that sent pixels: with
+  /// temporal coherence a frame where nothing moved sends none); 0 when none had one.
+  double achieved_vs_bound = 0;
+  std::uint32_t bounded_frames = 0;  ///< the frames with a bound
   double median_bytes_per_frame = 0;
   double compression_ratio = 1;
   std::map<std::string, double> worker_share;  ///< fraction of accepted tiles
@@ -79,8 +85,8 @@ struct RunSummary {
   double io_cpu_s = 0, process_cpu_s = 0;
 };
 /// The run's figures, frame by frame, kept small: a --loop run of hours at hundreds of frames a
-/// second must not keep every FrameStats (half a kilobyte each with its strings and map). 12
-/// bytes a frame for the medians (8 hours at 100 fps: 35 MB), sums for everything else.
+/// second must not keep every FrameStats (half a kilobyte each with its strings and map). 16
+/// bytes a frame for the medians (8 hours at 100 fps: 46 MB), sums for everything else.
 class RunAccumulator {
  public:
   void add(const FrameStats& f);
@@ -88,7 +94,7 @@ class RunAccumulator {
   [[nodiscard]] RunSummary summarize(double total_s) const;
 
  private:
-  std::vector<float> fps_, bound_fps_, bytes_;
+  std::vector<float> fps_, bound_fps_, achieved_, bytes_;
   std::uint64_t raw_ = 0, pixel_ = 0, tiles_ = 0;
   std::uint32_t duplicate_tiles_ = 0;
   std::map<std::string, std::uint64_t> by_worker_;

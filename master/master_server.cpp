@@ -177,6 +177,10 @@ class Master {
                                ? std::chrono::duration<double>(last_complete_ - run_start_).count()
                                : 0.0;
     RunSummary summary = finished_.summarize(total_s);
+    if (options_.loop_seconds <= 0) {
+      summary.frames_planned = static_cast<std::uint32_t>(options_.last_frame - options_.first_frame + 1);
+    }
+    summary.stopped = stop_reason_;
     if (run_started_) {
       summary.io_cpu_s = cpu_seconds(CLOCK_THREAD_CPUTIME_ID) - io_cpu_at_start_;  // this is the io thread
       summary.process_cpu_s = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID) - process_cpu_at_start_;
@@ -355,7 +359,7 @@ class Master {
   void handle(Worker& w, proto::Auth&& m, std::size_t) {
     if (w.state != Worker::State::AwaitAuth) return unexpected(w, "Auth");
     if (!options_.token.empty() && !proto::equal_constant_time(m.proof, proto::auth_proof(options_.token, w.nonce))) {
-      return reject(w, proto::ErrorCode::AuthFailed, "authentication failed (wrong token)");
+      return reject(w, proto::ErrorCode::AuthFailed, "authentication failed (wrong or missing token)");
     }
     w.auth_timer->cancel();
     w.conn->set_max_payload(proto::kMaxPayload);
@@ -653,7 +657,9 @@ class Master {
       if (done_) {
         spdlog::debug("worker {} closed: {}", w.describe(), reason);
       } else {
-        spdlog::info("worker {} left: {}; {} tiles back in the queue", w.describe(), reason, requeued);
+        // Leaving with tiles unfinished (killed, lost) is worth a warning; an idle one's goodbye is not.
+        spdlog::log(requeued > 0 ? spdlog::level::warn : spdlog::level::info, "worker {} left: {}; {} tiles back in the queue",
+                    w.describe(), reason, requeued);
       }
     } else if (!done_) {
       spdlog::warn("connection from {} closed before it authenticated: {}", w.conn->peer(), reason);
@@ -831,7 +837,10 @@ class Master {
       plan_sequence_.erase(f.plan);
       const Clock::time_point now = Clock::now();
       f.stats.wall_ms = ms_between(f.started_at, now);
-      f.stats.interval_ms = ms_between(last_complete_, now);
+      // The first frame's interval is its own wall time (frame_stats.h): from the run's start it
+      // would also hold the link probe and the other workers' start.
+      f.stats.interval_ms = frames_completed_ == 0 ? f.stats.wall_ms : ms_between(last_complete_, now);
+      ++frames_completed_;
       last_complete_ = now;
       f.stats.link_bytes_per_s = link_bytes_per_s_;
       f.stats.link_line_mbit_per_s = link_source_ == "given" ? options_.link_mbps : 0.0;
@@ -853,7 +862,7 @@ class Master {
         f.stats.written = expand_frame_pattern(options_.out_pattern, number, options_.multiple_frames);
         writer_->submit(f.stats.written, std::move(f.image));
       }
-      spdlog::info("{}", format_frame_line(f.stats));
+      spdlog::info("{}{}", format_frame_line(f.stats), progress_text(now));
       if (stats_file_.is_open()) {
         stats_file_ << frame_json(f.stats) << '\n';
         stats_file_.flush();
@@ -914,6 +923,20 @@ class Master {
     }
   }
 
+  // " | 11 of 24 frames, 0:03 left" (from the mean time a frame so far), or for --loop the
+  // seconds gone of the loop's; after the frame line, so that the log shows how far a long run is.
+  std::string progress_text(Clock::time_point now) const {
+    const double elapsed_s = std::chrono::duration<double>(now - run_start_).count();
+    if (options_.loop_seconds > 0) return fmt::format(" | {:.0f} of {} s", elapsed_s, options_.loop_seconds);
+    const std::uint64_t planned = static_cast<std::uint64_t>(options_.last_frame - options_.first_frame) + 1;
+    const std::uint64_t done = frames_completed_;
+    if (done >= planned) return fmt::format(" | {} of {} frames", done, planned);
+    const auto left_s = static_cast<std::uint64_t>(std::llround(elapsed_s / static_cast<double>(done) *
+                                                                  static_cast<double>(planned - done)));
+    return fmt::format(" | {} of {} frames, {}:{:02d}:{:02d} left", done, planned, left_s / 3600, left_s / 60 % 60,
+                       left_s % 60);
+  }
+
   void on_signal(const asio::error_code& ec, int signal) {
     if (ec || done_) return;
     const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
@@ -924,6 +947,7 @@ class Master {
       return;
     }
     stopping_ = true;
+    stop_reason_ = std::string("stopped by ") + name;
     spdlog::info("{}: taking no new frames; finishing {} in flight (up to {} s; signal again to abandon them)", name,
                  queue_.frames_open(), options_.drain_seconds);
     signals_.async_wait([this](const asio::error_code& e, int s) { on_signal(e, s); });
@@ -957,6 +981,7 @@ class Master {
   void shutdown(const std::string& reason) {
     if (done_) return;
     done_ = true;
+    if (stop_reason_.empty() && reason != "all frames done") stop_reason_ = reason;
     spdlog::info("shutting down: {}", reason);
     asio::error_code ec;
     acceptor_.close(ec);
@@ -1019,6 +1044,8 @@ class Master {
 
   bool run_started_ = false;
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_;
+  std::uint64_t frames_completed_ = 0;
+  std::string stop_reason_;  ///< why the run ended before its last frame; empty when it did not
   std::uint64_t heartbeat_seq_ = 0;
   double link_bytes_per_s_ = 0;
   std::string link_source_ = "unknown";

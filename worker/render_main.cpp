@@ -150,7 +150,14 @@ int run(int argc, char** argv) {
     std::filesystem::create_directories("out");
   }
   // A bad pattern, extension or output folder is reported before anything is rendered.
-  (void)rtc::check_output_pattern(out_pattern, frames.first, multiple);
+  const std::filesystem::path first_out = rtc::check_output_pattern(out_pattern, frames.first, multiple);
+  if (rtc::image_file_kind(first_out) != rtc::ImageFileKind::Exr) {
+    // Options that only EXR files take are not silently dropped.
+    for (const auto& [given, option] : {std::pair{exr_float, "--exr-float"}, std::pair{no_depth, "--no-depth"},
+                                        std::pair{no_normal, "--no-normal"}}) {
+      if (given) spdlog::warn("{} applies to EXR output only; {} is not an EXR file", option, first_out.string());
+    }
+  }
 
   rtc::RenderOptions options;
   options.isa = isa;

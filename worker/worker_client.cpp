@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -376,7 +377,14 @@ class WorkerClient {
     } else {
       spdlog::debug("master at {} not reachable ({}); next try in {} ms", options_.connect, why, backoff_ms_);
     }
-    retry_timer_.expires_after(std::chrono::milliseconds(backoff_ms_));
+    // The last wait ends at the deadline, so that the worker gives up at --retry-seconds and not
+    // up to one back-off step (5 s) later: one more try is made there.
+    int wait_ms = backoff_ms_;
+    if (options_.retry_seconds > 0) {
+      const double left_ms = (options_.retry_seconds - down_s) * 1000.0;
+      wait_ms = static_cast<int>(std::clamp(std::ceil(left_ms), 0.0, static_cast<double>(wait_ms)));
+    }
+    retry_timer_.expires_after(std::chrono::milliseconds(wait_ms));
     retry_timer_.async_wait([this](const asio::error_code& ec) {
       if (!ec) connect();
     });

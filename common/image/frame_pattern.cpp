@@ -11,6 +11,7 @@
 #include <system_error>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "common/base/error.h"
 
@@ -108,6 +109,10 @@ std::filesystem::path check_output_pattern(const std::string& pattern, int first
   const std::filesystem::path folder = first.parent_path().empty() ? "." : first.parent_path();
   if (::access(folder.c_str(), W_OK) != 0) {
     throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
+  }
+  if (std::filesystem::exists(first, ec)) {
+    spdlog::warn("--out: {} exists: {} overwritten", first.string(),
+                 multiple_frames ? "it and the run's other frames are" : "it is");
   }
   return first;
 }

@@ -327,6 +327,22 @@ case_interrupted() {
   [[ $stopped -ge 3 ]] || fail "only $stopped of $i runs were stopped by SIGINT"
 }
 
+case_output_warnings() {
+  # Options only EXR files take, given with PNG output, and a frame that already exists, are
+  # warned about (both were silent); the render still succeeds.
+  run first "$render" --frames 0 --width 16 --height 12 --exr-float --no-depth --out "$work/w.png"
+  expect_rc first 0
+  grep -q "\-\-exr-float applies to EXR output only; $work/w.png is not an EXR file" "$work/first.err" ||
+    { show first >&2; fail "no warning that --exr-float does not apply to PNG"; }
+  grep -q "\-\-no-depth applies to EXR output only" "$work/first.err" || { show first >&2; fail "no --no-depth warning"; }
+  if grep -q "overwritten" "$work/first.err"; then show first >&2; fail "a new file was said to be overwritten"; fi
+  run again "$render" --frames 0 --width 16 --height 12 --out "$work/w.png"
+  expect_rc again 0
+  grep -q "\-\-out: $work/w.png exists: it is overwritten" "$work/again.err" ||
+    { show again >&2; fail "no warning that the existing frame is overwritten"; }
+  if grep -q "applies to EXR output only" "$work/again.err"; then show again >&2; fail "a warning without the option"; fi
+}
+
 case_bad_isa() {
   expect_error isa '"avx9"' "unknown ISA" -- \
     "$render" --frames 0 --width 8 --height 8 --isa avx9 --out "$work/o.png"

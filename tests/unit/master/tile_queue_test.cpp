@@ -157,6 +157,51 @@ TEST(FrameStats, BoundIsLinkCapacityOverBytesPerFrame) {
   EXPECT_NE(summary_json(r).find("\"median_bound_fps\""), std::string::npos);
 }
 
+// The summary's "achieved" compares the frames that sent pixels with their own bound: a frame
+// that sent none (temporal coherence, nothing moved) has no bound and used to count in the fps
+// median but not in the bound's.
+TEST(FrameStats, AchievedIsOverTheFramesThatSentPixels) {
+  FrameStats sent;
+  sent.wire_bytes = 1'000'000;
+  sent.interval_ms = 100;  // 10 fps
+  sent.link_bytes_per_s = 20e6;  // bound 20 fps
+  sent.link_source = "measured";
+  FrameStats none = sent;
+  none.wire_bytes = 0;
+  none.interval_ms = 1;  // 1000 fps, no bound
+  const RunSummary r = summarize({sent, none, none, none, sent}, 0.5);
+  EXPECT_NEAR(r.median_fps, 1000.0, 1e-9);
+  EXPECT_NEAR(r.median_bound_fps, 20.0, 1e-9);
+  EXPECT_NEAR(r.achieved_vs_bound, 0.5, 1e-9);
+  EXPECT_EQ(r.bounded_frames, 2u);
+  const std::string text = format_summary(r);
+  EXPECT_NE(text.find("achieved 50.0% of it (over the 2 frames that sent pixels; 3 sent none)"), std::string::npos) << text;
+  EXPECT_EQ(text.find("above the bound"), std::string::npos) << text;
+  EXPECT_NE(summary_json(r).find("\"achieved_vs_bound\":0.5"), std::string::npos) << summary_json(r);
+  // Faster than the bound: the probe measured the link too slow, and the summary says so.
+  sent.link_bytes_per_s = 5e6;  // bound 5 fps
+  const std::string above = format_summary(summarize({sent, sent}, 0.2));
+  EXPECT_NE(above.find("achieved 200.0% of it (above the bound: the link measured slower than it is"), std::string::npos)
+      << above;
+}
+
+TEST(FrameStats, SummarySaysARunWasStopped) {
+  FrameStats f;
+  f.wire_bytes = 1000;
+  f.interval_ms = 10;
+  RunSummary r = summarize({f, f, f}, 0.03);
+  r.frames_planned = 24;
+  r.stopped = "stopped by SIGINT";
+  EXPECT_EQ(format_summary(r).rfind("summary: 3 of 24 frames (stopped by SIGINT: 21 not rendered) in 0.03 s", 0), 0u)
+      << format_summary(r);
+  EXPECT_NE(summary_json(r).find("\"stopped\":\"stopped by SIGINT\""), std::string::npos) << summary_json(r);
+  EXPECT_NE(summary_json(r).find("\"frames_planned\":24"), std::string::npos) << summary_json(r);
+  r.stopped.clear();
+  r.frames_planned = 3;
+  EXPECT_EQ(format_summary(r).rfind("summary: 3 frames in 0.03 s", 0), 0u) << format_summary(r);
+  EXPECT_NE(summary_json(r).find("\"stopped\":null"), std::string::npos) << summary_json(r);
+}
+
 TEST(FrameStats, GivenLineRateCarriesTcpPayloadOnly) {
   // 1448 payload bytes per 1538-byte Ethernet frame: Fast Ethernet carries 94.1 Mbit/s of TCP.
   EXPECT_NEAR(link_payload_bytes_per_s(100) * 8 / 1e6, 94.148, 1e-3);
