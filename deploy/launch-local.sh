@@ -8,7 +8,7 @@
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
 # Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the file's
-# name, or its folder's for a scene pack's view.json); --no-out among them (taken by this script)
+# name, or its folder's for a file named view.json); --no-out among them (taken by this script)
 # writes no frames at all: a frame-rate run. --min-workers among them replaces the default, N.
 # Binaries come from $RTC_BUILD_DIR (default build/release); they are built when missing.
 set -euo pipefail
@@ -60,8 +60,8 @@ if [ "$has_out" = 0 ]; then
   name="default"
   if [ ${#scene[@]} -gt 0 ]; then
     name="$(basename "${scene[0]%.*}")"
-    # A scene pack's view.json is named by its folder, as rtc-render names it.
-    [ "$name" = "view" ] && name="$(basename "$(cd "$(dirname "${scene[0]}")" && pwd)")"
+    # A scene pack's view.json is named by its folder (rtc-render takes the scene's "name" field).
+    [ "$name" = "view" ] && name="$(basename "$(cd -- "$(dirname "${scene[0]}")" >/dev/null && pwd)")"
   fi
   mkdir -p out/cluster
   master_args+=(--out "out/cluster/${name}_####.png")

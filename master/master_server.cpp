@@ -923,7 +923,7 @@ class Master {
     }
   }
 
-  // " | 11 of 24 frames, 0:03 left" (from the mean time a frame so far), or for --loop the
+  // " | 11 of 24 frames, 0:00:03 left" (from the mean time a frame so far), or for --loop the
   // seconds gone of the loop's; after the frame line, so that the log shows how far a long run is.
   std::string progress_text(Clock::time_point now) const {
     const double elapsed_s = std::chrono::duration<double>(now - run_start_).count();

@@ -43,22 +43,39 @@ std::atomic<int> g_phase{0};
 std::atomic<int> g_stop_signal{0};
 static_assert(std::atomic<int>::is_always_lock_free);
 
+/// Ends the process by `signo` itself (async-signal-safe), so that a calling shell sees a death
+/// by the signal (a script's loop over scenes stops at Ctrl-C) and $? is 128 + signo.
+[[noreturn]] void die_by(int signo) {
+  struct sigaction plain {};
+  plain.sa_handler = SIG_DFL;
+  sigemptyset(&plain.sa_mask);
+  ::sigaction(signo, &plain, nullptr);
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, signo);
+  ::pthread_sigmask(SIG_UNBLOCK, &set, nullptr);
+  ::raise(signo);
+  ::_exit(128 + signo);
+}
+
 extern "C" void on_stop_signal(int signo) {
   g_stop_signal.store(signo);
   int rendering = 0;
   if (g_phase.compare_exchange_strong(rendering, 2)) {
     static const char kMessage[] = "\nrtc-render: interrupted; the frames written before it are complete\n";
     (void)!::write(STDERR_FILENO, kMessage, sizeof kMessage - 1);
-    ::_exit(128 + signo);
+    die_by(signo);
   }
   // Writing (or already ending): the write finishes, then the frame loop stops.
 }
 
 /// A signal ignored when the program started (nohup's SIGHUP, SIGINT in a shell's background
-/// job) stays ignored.
+/// job) stays ignored. SA_RESTART: a signal during the write must not fail the write's system
+/// calls with EINTR (libpng writes through stdio, which does not retry).
 void install_stop_handlers() {
   struct sigaction action {};
   action.sa_handler = on_stop_signal;
+  action.sa_flags = SA_RESTART;
   sigemptyset(&action.sa_mask);
   for (const int signo : {SIGINT, SIGTERM, SIGHUP}) {
     struct sigaction old {};
@@ -75,8 +92,12 @@ void write_frame(const std::string& path, const rtc::Image& image, const rtc::Im
   }
   try {
     rtc::write_image(path, image, options);
-  } catch (...) {
+  } catch (const std::exception& e) {
     g_phase.store(0);
+    // The error is what ends the run; a signal that came during the write is named beside it.
+    if (const int signo = g_stop_signal.load(); signo != 0) {
+      throw rtc::Error(std::string(e.what()) + " (a stop signal, " + std::to_string(signo) + ", came during the write)");
+    }
     throw;
   }
   g_phase.store(0);
@@ -256,7 +277,8 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "rtc-render: interrupted by %s while frame %d was written: stopped after it (%s)%s\n",
                    signo == SIGINT ? "SIGINT" : signo == SIGTERM ? "SIGTERM" : "SIGHUP", f, path.c_str(),
                    f < frames.last ? fmt::format("; frames {}-{} not rendered", f + 1, frames.last).c_str() : "");
-      return 128 + signo;
+      std::fflush(stderr);
+      die_by(signo);
     }
   }
   if (multiple) {

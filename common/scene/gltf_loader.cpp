@@ -56,12 +56,14 @@ double max_abs(const glm::dvec3& v) {
   return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
 }
 
-// TinyGLTF's file access: FileBytes for reads, nothing written, paths as given. Whatever exists
-// is passed on to FileBytes, which says why a folder or a device cannot be read (TinyGLTF's own
-// message for them would be "File not found").
+// TinyGLTF's file access: FileBytes for reads, nothing written, paths as given. A folder is
+// passed on to FileBytes, which names it as one (TinyGLTF's own message would be "File not
+// found"); a device is never opened (a URI can name any path: opening a terminal or watchdog
+// device can block or act), so it stays "not found".
 bool file_exists(const std::string& path, void*) {
   std::error_code ec;
-  return std::filesystem::exists(path, ec);
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  return std::filesystem::is_regular_file(st) || std::filesystem::is_fifo(st) || std::filesystem::is_directory(st);
 }
 std::string expand_path(const std::string& path, void*) { return path; }
 bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {

@@ -872,7 +872,7 @@ def case_worker_gives_up(c):
         elapsed = time.monotonic() - w.started
     if rc != 1:
         fail(f"rtc-worker: {describe_rc(rc)}, expected exit status 1")
-    if elapsed > 8.5:
+    if elapsed > 10:
         fail(f"rtc-worker took {elapsed:.1f} s to give up (--retry-seconds 7)")
     if elapsed < 6.9:
         fail(f"rtc-worker gave up after {elapsed:.1f} s, before its --retry-seconds 7")

@@ -160,9 +160,10 @@ class Load:
 
 def rates(records, summary):
     """(measured fps, bound fps, bytes per frame). Measured: frames per second of the master's
-    frame intervals without the first frame, whose interval includes the start of the pipeline
-    (scene ready to first tiles). With frames in flight a single interval can be shorter than a
-    frame's link time; their sum cannot."""
+    frame intervals without the first frame, whose interval is its own wall time (from its
+    opening, the probe and the pipeline's start included) rather than a time between frames.
+    With frames in flight a single interval can be shorter than a frame's link time; their sum
+    cannot."""
     ordered = sorted(records, key=lambda r: r["sequence"])
     steady = ordered[1:] or ordered
     measured = 1000.0 * len(steady) / sum(r["interval_ms"] for r in steady)
