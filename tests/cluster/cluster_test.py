@@ -1628,6 +1628,20 @@ def case_launch_local(c):
     if not 1 <= len(written) < 24:
         fail(f"expected some but not all 24 frames after Ctrl-C, got {len(written)}")
     print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+    # The script's own --no-out writes nothing (a frame-rate run); --out=PATH and --min-workers=N
+    # are the master's as given (each used to collide with the script's own, an error).
+    rc, log = _run_launcher(c, "launch-noout", [*SMALL, "--frames", "0-1", "--no-out", "--min-workers=1"], False)
+    if rc != 0 or not re.search(r"summary: 2 frames in", log):
+        fail(f"launch-local.sh -- --no-out --min-workers=1: exit {rc}, expected 0 and 2 frames:\n{log}")
+    if os.path.exists(os.path.join(c.tmp, "out")):
+        fail(f"launch-local.sh -- --no-out wrote frames: {os.listdir(os.path.join(c.tmp, 'out'))}")
+    out3 = c.mkdir("equals")
+    rc, log = _run_launcher(c, "launch-eq", [*SMALL, "--frames", "0-1", "--out=" + os.path.join(out3, "e_####.png")], False)
+    if rc != 0 or sorted(os.listdir(out3)) != ["e_0000.png", "e_0001.png"]:
+        fail(f"launch-local.sh -- --out=PATH: exit {rc}, files {sorted(os.listdir(out3))}:\n{log}")
+    if os.path.exists(os.path.join(c.tmp, "out")):
+        fail("launch-local.sh -- --out=PATH also wrote to out/cluster")
+    print("--no-out wrote nothing; --out=PATH and --min-workers=1 were taken as given")
 
 
 # ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------
