@@ -171,7 +171,10 @@ int run(int argc, char** argv) {
   rtc::check_memory(std::to_string(held) + (held == 1 ? " frame" : " frames") + " of " + std::to_string(scene.width) +
                         "x" + std::to_string(scene.height) + " held at once",
                     frame_bytes * held, "use a smaller --width/--height or fewer --frames-in-flight");
-  if (!o.out_pattern.empty()) (void)rtc::check_output_pattern(o.out_pattern, frames.first, o.multiple_frames);
+  // With --loop files are numbered by sequence (0, 1, ...), not by scene frame.
+  if (!o.out_pattern.empty()) {
+    (void)rtc::check_output_pattern(o.out_pattern, o.loop_seconds > 0 ? 0 : frames.first, o.multiple_frames);
+  }
   return rtc::run_master(scene, o);
 }
 
