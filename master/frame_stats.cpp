@@ -139,6 +139,13 @@ RunSummary summarize(const std::vector<FrameStats>& frames, double total_s) {
 }
 
 std::string format_summary(const RunSummary& s) {
+  if (s.frames == 0) {
+    // No figure to give (they used to read "0.000 MB/frame (+ 1.00:1); ... share" with nothing).
+    std::string out = "summary: no frame finished";
+    if (s.frames_planned > 0) out += fmt::format(" of the {} asked for", s.frames_planned);
+    if (!s.stopped.empty()) out += fmt::format(" ({})", s.stopped);
+    return out;
+  }
   std::string frames = fmt::format("{} frames", s.frames);
   if (s.frames_planned > 0 && s.frames < s.frames_planned) {
     frames = fmt::format("{} of {} frames ({}: {} not rendered)", s.frames, s.frames_planned,

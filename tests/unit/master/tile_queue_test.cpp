@@ -200,6 +200,10 @@ TEST(FrameStats, SummarySaysARunWasStopped) {
   r.frames_planned = 3;
   EXPECT_EQ(format_summary(r).rfind("summary: 3 frames in 0.03 s", 0), 0u) << format_summary(r);
   EXPECT_NE(summary_json(r).find("\"stopped\":null"), std::string::npos) << summary_json(r);
+  RunSummary none = summarize({}, 0.0);
+  none.frames_planned = 24;
+  none.stopped = "stopped by SIGTERM";
+  EXPECT_EQ(format_summary(none), "summary: no frame finished of the 24 asked for (stopped by SIGTERM)");
 }
 
 TEST(FrameStats, GivenLineRateCarriesTcpPayloadOnly) {
