@@ -839,8 +839,7 @@ class Master {
       f.stats.wall_ms = ms_between(f.started_at, now);
       // The first frame's interval is its own wall time (frame_stats.h): from the run's start it
       // would also hold the link probe and the other workers' start.
-      f.stats.interval_ms = frames_completed_ == 0 ? f.stats.wall_ms : ms_between(last_complete_, now);
-      ++frames_completed_;
+      f.stats.interval_ms = finished_.frames() == 0 ? f.stats.wall_ms : ms_between(last_complete_, now);
       last_complete_ = now;
       f.stats.link_bytes_per_s = link_bytes_per_s_;
       f.stats.link_line_mbit_per_s = link_source_ == "given" ? options_.link_mbps : 0.0;
@@ -862,16 +861,13 @@ class Master {
         f.stats.written = expand_frame_pattern(options_.out_pattern, number, options_.multiple_frames);
         writer_->submit(f.stats.written, std::move(f.image));
       }
+      finished_.add(f.stats);
       spdlog::info("{}{}", format_frame_line(f.stats), progress_text(now));
       if (stats_file_.is_open()) {
         stats_file_ << frame_json(f.stats) << '\n';
         stats_file_.flush();
-        if (!stats_file_) {
-          finished_.add(f.stats);
-          return fatal("--stats-json " + options_.stats_json + ": write failed (disk full?)");
-        }
+        if (!stats_file_) return fatal("--stats-json " + options_.stats_json + ": write failed (disk full?)");
       }
-      finished_.add(f.stats);
     }
     if (run_started_ && !more_frames() && queue_.frames_open() == 0) {
       shutdown(stopping_ ? "the master was stopped" : "all frames done");
@@ -929,7 +925,7 @@ class Master {
     const double elapsed_s = std::chrono::duration<double>(now - run_start_).count();
     if (options_.loop_seconds > 0) return fmt::format(" | {:.0f} of {} s", elapsed_s, options_.loop_seconds);
     const std::uint64_t planned = static_cast<std::uint64_t>(options_.last_frame - options_.first_frame) + 1;
-    const std::uint64_t done = frames_completed_;
+    const std::uint64_t done = finished_.frames();  // this frame included
     if (done >= planned) return fmt::format(" | {} of {} frames", done, planned);
     const auto left_s = static_cast<std::uint64_t>(std::llround(elapsed_s / static_cast<double>(done) *
                                                                   static_cast<double>(planned - done)));
@@ -1044,7 +1040,6 @@ class Master {
 
   bool run_started_ = false;
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_;
-  std::uint64_t frames_completed_ = 0;
   std::string stop_reason_;  ///< why the run ended before its last frame; empty when it did not
   std::uint64_t heartbeat_seq_ = 0;
   double link_bytes_per_s_ = 0;

@@ -218,7 +218,6 @@ int run(int argc, char** argv) {
   }
   double last_full_ms = 0;
   rtc::Timer run_timer;
-  std::string last_written;
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
     const double cpu_start = rtc::process_cpu_ms();
@@ -263,7 +262,6 @@ int run(int argc, char** argv) {
     }
     const std::string path = rtc::expand_frame_pattern(out_pattern, f, multiple);
     write_frame(path, *image, write_options);
-    last_written = path;
     const double seconds = std::max(render_ms, 1e-3) / 1000.0;
     std::printf("frame %d: wrote %s (%dx%d) in %.3f s: prepare %.0f ms (cpu %.0f ms), render %.0f ms (cpu %.0f ms), %.2f M rays/s "
                 "(%llu primary, %llu of them skipped as empty space, %llu shadow, %llu reflection)%s\n",
@@ -283,7 +281,8 @@ int run(int argc, char** argv) {
   }
   if (multiple) {
     std::printf("rendered frames %d-%d (%d frames) in %.1f s; the last: %s\n", frames.first, frames.last,
-                frames.last - frames.first + 1, run_timer.elapsed_ms() / 1000.0, last_written.c_str());
+                frames.last - frames.first + 1, run_timer.elapsed_ms() / 1000.0,
+                rtc::expand_frame_pattern(out_pattern, frames.last, multiple).c_str());
   }
   return 0;
 }

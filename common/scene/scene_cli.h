@@ -21,10 +21,11 @@ struct SceneCliOptions {
   std::string intersector;  ///< empty: the scene's
 };
 
-/// How messages name the scene: its file, or "(built-in default)".
-inline std::string scene_label(const SceneCliOptions& o) {
-  return o.scene_path.empty() ? std::string("(built-in default)") : o.scene_path;
+/// How messages name the scene: its file, or "(built-in default)" for an empty path.
+inline std::string scene_label(const std::string& scene_path) {
+  return scene_path.empty() ? std::string("(built-in default)") : scene_path;
 }
+inline std::string scene_label(const SceneCliOptions& o) { return scene_label(o.scene_path); }
 
 /// Registers SCENE and --width --height --spp --max-depth --min-weight --intersector on `app`.
 inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
