@@ -459,6 +459,46 @@ TEST(MessageLimits, FixedSizeTypesHaveExactLimits) {
   }
 }
 
+// protocol.md is the wire format's reference for other implementations: its header row names the
+// range of types and its table every type's name and payload limit, which must be the code's.
+TEST(MessageLimits, ProtocolMdTableMatchesTheCode) {
+  const std::filesystem::path doc = std::filesystem::path(RTC_TEST_DATA) / "../../../protocol/protocol.md";
+  std::ifstream in(doc);
+  ASSERT_TRUE(in) << doc;
+  const std::uint16_t last = static_cast<std::uint16_t>(std::variant_size_v<Message>);
+  std::set<std::uint16_t> documented;
+  bool header_row = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.find("| type   | message type, 1..") != std::string::npos) {
+      header_row = true;
+      EXPECT_THAT(line, HasSubstr("1.." + std::to_string(last) + " ")) << "protocol.md's header row";
+    }
+    // Rows of the type table: "| 7    | SceneChunk    | master -> worker | 1048620 (44 + 1 MiB) |".
+    std::vector<std::string> cells;
+    for (std::size_t at = line.find('|'); at != std::string::npos;) {
+      const std::size_t next = line.find('|', at + 1);
+      if (next == std::string::npos) break;
+      std::string cell = line.substr(at + 1, next - at - 1);
+      cell.erase(0, cell.find_first_not_of(' '));
+      cell.erase(cell.find_last_not_of(' ') + 1);
+      cells.push_back(cell);
+      at = next;
+    }
+    if (cells.size() != 4 || (cells[2].find("->") == std::string::npos && cells[2] != "either way")) continue;
+    if (cells[0].empty() || cells[0].find_first_not_of("0123456789") != std::string::npos) continue;
+    const auto type = static_cast<std::uint16_t>(std::stoi(cells[0]));
+    documented.insert(type);
+    EXPECT_EQ(cells[1], type_name(type)) << "protocol.md, type " << type;
+    EXPECT_EQ(cells[3].substr(0, cells[3].find(' ')), std::to_string(max_payload(type)))
+        << "protocol.md's limit of " << type_name(type);
+  }
+  EXPECT_TRUE(header_row) << "protocol.md has no header row naming the types' range";
+  for (std::uint16_t type = 1; type <= last; ++type) {
+    EXPECT_TRUE(documented.count(type) == 1) << "protocol.md's table lacks type " << type << " (" << type_name(type) << ")";
+  }
+  EXPECT_EQ(documented.size(), last);
+}
+
 TEST(MessageLimits, LargestValidMessageOfEachVariableTypeFitsExactly) {
   const std::string name(kMaxName, 'n');
   const std::string text(kMaxText, 't');
