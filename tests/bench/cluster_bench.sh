@@ -9,7 +9,11 @@
 #   tests/bench/cluster_bench.sh scaling [SECONDS] [SCENE...]
 #   tests/bench/cluster_bench.sh link [SECONDS] [SCENE...]      (RATE=100mbit WORKERS=2 SIZES="512 1024"
 #                                                                MEASURED_ONLY=1)
-# Writes JSON lines to tests/bench/results/cluster_<mode>.jsonl and a table to cluster_<mode>.md.
+# Writes JSON lines to tests/bench/results/cluster_<mode>.jsonl and a table to cluster_<mode>.md,
+# both replaced only when every run succeeded.
+# Every frame is traced whole (--temporal off on both programs): with temporal coherence, on by
+# default for a still camera, a static scene's frames after the first trace nothing and send no
+# pixels, which would measure neither the cluster's overhead nor the link.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="${RTC_BUILD_DIR:-$root/build/release}"
@@ -53,7 +57,7 @@ run_cluster() {
   [ -n "$nsw" ] && pre_w=(ip netns exec "$nsw")
   rm -f "$work/ready" "$work/stats.jsonl"
   "${pre_m[@]}" "$master" --listen "$listen" --ready-file "$work/ready" --min-workers "$n" \
-    --stats-json "$work/stats.jsonl" --log-level warn "$@" > "$work/master.log" 2>&1 &
+    --stats-json "$work/stats.jsonl" --log-level warn --temporal off "$@" > "$work/master.log" 2>&1 &
   local mpid=$!
   pids=("$mpid")
   for _ in $(seq 1 300); do [ -s "$work/ready" ] && break; sleep 0.1; done
@@ -89,14 +93,16 @@ run_cluster() {
 token_args=()
 case "$mode" in
   scaling)
-    out="$results/cluster_scaling.jsonl"
+    final="$results/cluster_scaling.jsonl"
+    out="$work/cluster_scaling.jsonl"
     : > "$out"
     for scene in "${scenes[@]}"; do
       name="$(basename "$(dirname "$scene")")/$(basename "$scene")"
       for t in 1 2 4; do
         # rtc-render: the same frame 20 times with t threads; its own per-frame render time.
+        rm -f "$work"/r_*.png
         "$render" "$scene" --width 512 --height 512 --frames 0-19 --threads "$t" --out "$work/r_####.png" \
-          --log-level warn > "$work/render.log"
+          --temporal off --log-level warn > "$work/render.log"
         python3 - "$work/render.log" "$name" "$t" >> "$out" <<'PY'
 import json, re, statistics, sys
 ms = [float(m.group(1)) for m in re.finditer(r"in ([0-9.]+) s:", open(sys.argv[1]).read())]
@@ -132,9 +138,10 @@ PY
     ip netns exec "$ns_workers" tc qdisc add dev rtcb-b root tbf rate "$rate" burst 32kbit latency 400ms overhead 24
     head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' > "$work/token"
     token_args=(--token-file "$work/token")
-    out="$results/cluster_link.jsonl"
+    final="$results/cluster_link.jsonl"
     # MEASURED_ONLY=1: only the runs where the master measures the link itself.
-    [ "${MEASURED_ONLY:-0}" = 1 ] && { out="$results/cluster_link_measured.jsonl"; sizes=""; }
+    [ "${MEASURED_ONLY:-0}" = 1 ] && { final="$results/cluster_link_measured.jsonl"; sizes=""; }
+    out="$work/$(basename "$final")"
     : > "$out"
     mbps="$(python3 -c "import re,sys; r=sys.argv[1].lower(); m=re.match(r'([0-9.]+)(k|m|g)bit',r); print(float(m.group(1))*{'k':1e-3,'m':1,'g':1e3}[m.group(2)])" "$rate")"
     for scene in "${scenes[@]}"; do
@@ -158,5 +165,7 @@ PY
     ;;
   *) echo "cluster_bench: unknown mode $mode (scaling or link)" >&2; exit 2 ;;
 esac
-python3 "$root/tests/bench/cluster_summary.py" "$out" > "${out%.jsonl}.md"
-cat "${out%.jsonl}.md"
+python3 "$root/tests/bench/cluster_summary.py" "$out" > "$work/summary.md"
+mv "$out" "$final"
+mv "$work/summary.md" "${final%.jsonl}.md"
+cat "${final%.jsonl}.md"
