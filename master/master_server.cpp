@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/base/error.h"
+#include "common/base/signal_name.h"
 #include "common/base/version.h"
 #include "common/scene/serialize.h"
 #include "master/frame_stats.h"
@@ -935,7 +936,7 @@ class Master {
 
   void on_signal(const asio::error_code& ec, int signal) {
     if (ec || done_) return;
-    const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+    const std::string name = signal_name(signal);
     if (stopping_ || queue_.frames_open() == 0) {
       if (queue_.frames_open() > 0) spdlog::warn("{} again: abandoning the frames in flight", name);
       abandon_open_frames();

@@ -23,6 +23,7 @@
 #include "common/base/log.h"
 #include "common/base/process_memory.h"
 #include "common/base/progress.h"
+#include "common/base/signal_name.h"
 #include "common/base/timer.h"
 #include "common/image/image.h"
 #include "common/render/render_kernels.h"
@@ -96,7 +97,7 @@ void write_frame(const std::string& path, const rtc::Image& image, const rtc::Im
     g_phase.store(0);
     // The error is what ends the run; a signal that came during the write is named beside it.
     if (const int signo = g_stop_signal.load(); signo != 0) {
-      throw rtc::Error(std::string(e.what()) + " (a stop signal, " + std::to_string(signo) + ", came during the write)");
+      throw rtc::Error(std::string(e.what()) + " (" + rtc::signal_name(signo) + " came during the write)");
     }
     throw;
   }
@@ -273,7 +274,7 @@ int run(int argc, char** argv) {
     std::fflush(stdout);
     if (const int signo = g_stop_signal.load(); signo != 0) {
       std::fprintf(stderr, "rtc-render: interrupted by %s while frame %d was written: stopped after it (%s)%s\n",
-                   signo == SIGINT ? "SIGINT" : signo == SIGTERM ? "SIGTERM" : "SIGHUP", f, path.c_str(),
+                   rtc::signal_name(signo).c_str(), f, path.c_str(),
                    f < frames.last ? fmt::format("; frames {}-{} not rendered", f + 1, frames.last).c_str() : "");
       std::fflush(stderr);
       die_by(signo);

@@ -23,6 +23,7 @@
 #include <tbb/global_control.h>
 
 #include "common/base/error.h"
+#include "common/base/signal_name.h"
 #include "common/base/timer.h"
 #include "common/base/version.h"
 #include "common/image/pixel_format.h"
@@ -315,7 +316,7 @@ class WorkerClient {
     lost_since_ = Clock::now();
     signals_.async_wait([this](const asio::error_code& ec, int signal) {
       if (ec) return;
-      spdlog::info("{}: saying goodbye to the master and exiting", signal == SIGINT ? "SIGINT" : "SIGTERM");
+      spdlog::info("{}: saying goodbye to the master and exiting", signal_name(signal));
       exit_code_ = 0;
       finish(true);
     });

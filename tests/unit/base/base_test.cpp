@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <csignal>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -17,6 +18,7 @@
 #include "common/base/isa.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
+#include "common/base/signal_name.h"
 
 namespace rtc {
 namespace {
@@ -303,6 +305,15 @@ TEST(ProgressBar, ConcurrentAddsAreAllCounted) {
   for (std::thread& t : threads) t.join();
   EXPECT_EQ(bar.done(), 40000u);
   bar.finish();
+}
+
+TEST(SignalName, NamesTheStopSignalsAndNumbersTheRest) {
+  EXPECT_EQ(signal_name(SIGINT), "SIGINT");
+  EXPECT_EQ(signal_name(SIGTERM), "SIGTERM");
+  EXPECT_EQ(signal_name(SIGHUP), "SIGHUP");
+  EXPECT_EQ(signal_name(SIGKILL), "SIGKILL");
+  EXPECT_EQ(signal_name(0), "signal 0");
+  EXPECT_EQ(signal_name(1000), "signal 1000");
 }
 
 }  // namespace
