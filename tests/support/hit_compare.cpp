@@ -67,10 +67,14 @@ HitComparison compare_hits(std::span<const glm::vec3> positions, std::span<const
     }
     if (h0 != h1) {
       ++c.hit_miss_disagree;
+      // Explained only where the ray passes the hit triangle within edge_eps of its boundary
+      // (in barycentric weight) on either side, or runs parallel to its plane (det 0: no weights;
+      // a ray in the plane grazes it): a hit well inside or a miss well outside the triangle is
+      // a real disagreement.
       const glm::uvec3 t = triangles[h0 ? ours[i].prim : theirs[i].prim];
       double b = 0;
       (void)ray_triangle_t(rays[i], positions[t.x], positions[t.y], positions[t.z], &b);
-      if (b <= edge_eps) {
+      if (std::fabs(b) <= edge_eps) {
         ++c.hit_miss_on_edge;
       } else {
         note(i);
