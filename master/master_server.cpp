@@ -61,7 +61,10 @@ struct Worker {
   TileQueue::WorkerId id = 0;
   std::shared_ptr<net::Connection> conn;
   std::string host;   // the peer's address without the port (connection limits)
-  std::string label;  // "w3", used in the per-frame tile counts
+  /// "w3" once it has authenticated (workers are numbered in the order they do, so connections
+  /// refused before use no number), "#5" (the connection's count) until then; used in the logs
+  /// and the per-frame tile counts.
+  std::string label;
   State state = State::AwaitHello;
   proto::Nonce nonce{};
   proto::Hello hello;
@@ -301,7 +304,7 @@ class Master {
     const TileQueue::WorkerId id = ++last_worker_id_;
     auto w = std::make_unique<Worker>();
     w->id = id;
-    w->label = "w" + std::to_string(id);
+    w->label = "#" + std::to_string(id);
     w->host = host;
     w->conn = std::move(conn);
     w->nonce = proto::random_nonce();
@@ -370,8 +373,10 @@ class Master {
       spdlog::warn("{}: build \"{}\" differs from the master's \"{}\": its pixels may differ", w.describe(),
                    w.hello.build_id, build_id());
     }
+    const std::uint32_t number = ++last_worker_number_;
+    w.label = "w" + std::to_string(number);
     proto::Welcome welcome;
-    welcome.worker_id = w.id;
+    welcome.worker_id = number;
     welcome.heartbeat_ms = static_cast<std::uint32_t>(options_.heartbeat_ms);
     welcome.max_outstanding = static_cast<std::uint32_t>(w.max_outstanding);
     w.conn->send(welcome);
@@ -1026,7 +1031,8 @@ class Master {
   std::string listening_on_;
 
   std::map<TileQueue::WorkerId, std::unique_ptr<Worker>> workers_;
-  TileQueue::WorkerId last_worker_id_ = 0;
+  TileQueue::WorkerId last_worker_id_ = 0;  ///< connections accepted (the workers_ keys)
+  std::uint32_t last_worker_number_ = 0;    ///< workers authenticated (their labels, Welcome::worker_id)
   std::map<std::uint32_t, OpenFrame> frames_;
   std::uint32_t next_sequence_ = 0;
   int next_frame_ = 0;

@@ -733,6 +733,42 @@ def case_bad_peers(c):
     c.expect_frames_equal(out, "m", ref, range(0, 24), "png")
 
 
+def case_worker_numbers(c):
+    """Workers are numbered in the order they authenticate: connections refused before (a wrong
+    proof, a peer that never sends Hello) use no number, so the first worker to join is w1, in
+    the master's log, its tile counts and the worker's own log."""
+    token = c.token_file("token", "correct horse battery staple")
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*SMALL, *WHOLE, "--frames", "0-1", "--stats-json", stats,
+                                                "--token-file", token, "--auth-timeout", "1000"])
+    host, port = split_address(addr)
+    for i in range(2):  # two wrong proofs
+        with socket.create_connection((host, port), timeout=10) as s:
+            nonce, _, build = read_challenge(s)
+            proof = hmac.new(b"wrong token", AUTH_CONTEXT + nonce, hashlib.sha256).digest()
+            s.sendall(message(MSG_HELLO, hello_payload(f"bad{i}", build)) + message(MSG_AUTH, proof))
+            read_until_closed(s, 10)
+    with socket.create_connection((host, port), timeout=10) as s:  # silent until the auth timeout
+        read_challenge(s)
+        _, closed = read_until_closed(s, 10)
+    if not closed:
+        fail("the master kept a peer that never sent Hello past --auth-timeout-ms")
+    refused = re.findall(r"worker (#\d+) \(bad\d at [^)]*\): authentication failed", master.log())
+    if len(refused) != 2:
+        fail(f"expected two refusals logged with connection numbers (#N), got {refused}")
+    good = c.start_worker("good", addr, 1, ["--token-file", token])
+    expect_exit(master, 0, 60, "render both frames with the one worker")
+    expect_exit(good, 0, 15, "exit 0 after the master's Goodbye")
+    label = worker_labels(master).get("good")
+    if label != "w1":
+        fail(f"the first worker to authenticate is {label} after three refused connections, expected w1")
+    expect_log(good, r"as worker w1 ", "the worker to be told it is w1", timeout=1)
+    frames, _ = read_stats(stats)
+    for f in frames:
+        if set(f["tiles_by_worker"]) != {"w1"}:
+            fail(f"frame {f['frame']} counts tiles of {sorted(f['tiles_by_worker'])}, expected only w1")
+
+
 def interrupted_run(c, tag, scene, twice):
     """12 frames on 2 workers; SIGINT to the master after the first frame (and, with `twice`, a
     second SIGINT as soon as it drains). Checks the exit, the Goodbyes and the output folder;
@@ -1709,24 +1745,35 @@ def case_temporal_worker_killed(c):
     # The kill after frame 0, so that nine frames are still to come when it lands. Frames after
     # the first trace a few tiles each and go by fast: at 2 samples a pixel frames 1-9 took
     # ~0.12 s on 2026-11-23 and the kill landed ~0.07 s before the end; at 16 0.3-0.4 s before it.
+    # The victim usually holds tiles of frame 1 when it dies; a run where it held none would not
+    # test the requeue, so such a run is repeated (at most 3 runs, each checked in full).
     scene = [os.path.join(TEMPORAL_SCENES, "crossing.json"), "--width", "480", "--height", "360", "--spp", "16"]
     ref = c.reference("kill-ref", scene, "0-9", "png", extra=("--temporal", "off"))
-    out = c.mkdir("kill")
-    stats = c.path("kill-stats.json")
-    master, addr, _ = c.start_master("kill-master", [*scene, "--out", os.path.join(out, "m_####.png"),
-                                                     "--stats-json", stats, "--min-workers", "2",
-                                                     "--temporal", "on", "--tiles-per-worker", "2"])
-    started = time.monotonic()
-    victim = c.start_worker("kill-victim", addr, 1)
-    keeper = c.start_worker("kill-keeper", addr, 1)
-    expect_log(master, r"frame 0 \[seq 0\]", "frame 0 done", timeout=60, watch=[master])
-    victim.send(signal.SIGKILL)
-    expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
-    expect_log(master, r"worker w\d+ \(kill-victim at [^)]*\) left", "the victim's loss", timeout=30, watch=[master])
-    expect_exit(master, 0, 90, "finish every frame without the killed worker")
-    expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
-    c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
-    expect_frame_times_sane("kill", read_stats(stats)[0], time.monotonic() - started)
+    requeued_by_run = []
+    for run in range(3):
+        out = c.mkdir(f"kill{run}")
+        stats = c.path(f"kill{run}-stats.json")
+        master, addr, _ = c.start_master(f"kill{run}-master", [*scene, "--out", os.path.join(out, "m_####.png"),
+                                                               "--stats-json", stats, "--min-workers", "2",
+                                                               "--temporal", "on", "--tiles-per-worker", "2"])
+        started = time.monotonic()
+        victim = c.start_worker(f"kill{run}-victim", addr, 1)
+        keeper = c.start_worker(f"kill{run}-keeper", addr, 1)
+        expect_log(master, r"frame 0 \[seq 0\]", "frame 0 done", timeout=60, watch=[master])
+        victim.send(signal.SIGKILL)
+        expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
+        m = expect_log(master, rf"worker w\d+ \(kill{run}-victim at [^)]*\) left: .*; (\d+) tiles back in the queue",
+                       "the victim's loss", timeout=30, watch=[master])
+        requeued_by_run.append(int(m.group(1)))
+        expect_exit(master, 0, 90, "finish every frame without the killed worker")
+        expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
+        c.expect_frames_equal(out, "m", ref, range(0, 10), "png")
+        expect_frame_times_sane("kill", read_stats(stats)[0], time.monotonic() - started)
+        if requeued_by_run[-1] > 0:
+            break
+    print(f"tiles back in the queue when the victim died, by run: {requeued_by_run}")
+    if requeued_by_run[-1] == 0:
+        fail(f"the victim held no tile when killed in {len(requeued_by_run)} runs: the requeue went untested")
 
 
 CASES = {
@@ -1742,6 +1789,7 @@ CASES = {
     "worker_joins_midrun": case_worker_joins_midrun,
     "master_restart": case_master_restart,
     "bad_peers": case_bad_peers,
+    "worker_numbers": case_worker_numbers,
     "sigint_finishes_cleanly": case_sigint_finishes_cleanly,
     "worker_frozen": case_worker_frozen,
     "non_loopback_needs_token": case_non_loopback_needs_token,
