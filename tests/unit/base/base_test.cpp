@@ -8,6 +8,10 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <initializer_list>
+#include <sstream>
+#include <set>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -160,6 +164,41 @@ TEST(Isa, CpuSupportIsMonotonic) {
   if (cpu_supports(Isa::Avx2)) {
     EXPECT_TRUE(cpu_supports(Isa::Sse42));
   }
+}
+
+// What the kernels need of the CPU, read independently of cpu_supports (which asks CPUID through
+// GCC's builtins): the kernel's own flags in /proc/cpuinfo. Every cross-ISA test skips the ISAs
+// cpu_supports denies, so a wrong answer there would let them compare SSE4.2 with itself.
+TEST(Isa, CpuSupportsWhatProcCpuinfoLists) {
+  std::ifstream in("/proc/cpuinfo");
+  if (!in) GTEST_SKIP() << "no /proc/cpuinfo";
+  std::set<std::string> flags;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("flags", 0) != 0) continue;
+    std::istringstream words(line.substr(line.find(':') + 1));
+    for (std::string w; words >> w;) flags.insert(w);
+    break;  // the first processor's
+  }
+  ASSERT_FALSE(flags.empty()) << "/proc/cpuinfo has no flags line";
+  const auto all = [&](std::initializer_list<const char*> names) {
+    return std::all_of(names.begin(), names.end(), [&](const char* n) { return flags.count(n) == 1; });
+  };
+  const bool sse42 = all({"sse4_2", "popcnt"});
+  const bool avx2 = sse42 && all({"avx2", "fma", "bmi1", "bmi2"});
+  const bool avx512 = avx2 && all({"avx512f", "avx512dq", "avx512bw", "avx512vl"});
+  EXPECT_EQ(cpu_supports(Isa::Sse42), sse42);
+  EXPECT_EQ(cpu_supports(Isa::Avx2), avx2);
+  EXPECT_EQ(cpu_supports(Isa::Avx512), avx512);
+}
+
+// The kernels compiled in are the ones configured (cmake/rtc_isa.cmake's RTC_ISAS).
+TEST(Isa, CompiledIsasAreTheConfiguredOnes) {
+  std::string names;
+  for (const Isa isa : compiled_isas()) {
+    const std::string_view n = isa_name(isa);
+    names += (names.empty() ? "" : ",") + std::string(n == "sse4.2" ? "sse42" : n);
+  }
+  EXPECT_EQ(names, RTC_CONFIGURED_ISAS);
 }
 
 std::string error_of(const std::function<void()>& f) {
