@@ -369,12 +369,12 @@ class Master {
     w.conn->set_max_payload(proto::kMaxPayload);
     w.max_outstanding = options_.tiles_per_worker > 0 ? static_cast<std::size_t>(options_.tiles_per_worker)
                                                       : std::max<std::size_t>(2, 2 * w.threads + 2);
+    const std::uint32_t number = ++last_worker_number_;
+    w.label = "w" + std::to_string(number);
     if (w.hello.build_id != build_id()) {
       spdlog::warn("{}: build \"{}\" differs from the master's \"{}\": its pixels may differ", w.describe(),
                    w.hello.build_id, build_id());
     }
-    const std::uint32_t number = ++last_worker_number_;
-    w.label = "w" + std::to_string(number);
     proto::Welcome welcome;
     welcome.worker_id = number;
     welcome.heartbeat_ms = static_cast<std::uint32_t>(options_.heartbeat_ms);

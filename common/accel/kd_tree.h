@@ -314,7 +314,8 @@ struct KdBuildOptions {
   /// 8 at a time, event lists under 64 sorted by rank, clipped bounds rounded outward by
   /// conversions with embedded rounding; with AVX-512 VPOPCNTDQ: the bit-mask stage's plane
   /// scan, 16 planes at a time; with AVX2 and no AVX-512: the event sweep's SAH 8 events at a
-  /// time, the bit-mask stage's plane scan 8 planes at a time with popcounts by nibble lookup,
+  /// time, the bit-mask stage's plane scan 8 planes at a time with popcounts by nibble lookup
+  /// (also on AVX-512 without VPOPCNTDQ),
   /// event lists under 64 sorted by rank, clipped bounds rounded outward in their bits).
   /// False: the scalar code, which builds the same tree (tested); for tests and A/B runs.
   bool simd = true;

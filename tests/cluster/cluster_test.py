@@ -752,7 +752,7 @@ def case_worker_numbers(c):
         read_challenge(s)
         _, closed = read_until_closed(s, 10)
     if not closed:
-        fail("the master kept a peer that never sent Hello past --auth-timeout-ms")
+        fail("the master kept a peer that never sent Hello past --auth-timeout")
     refused = re.findall(r"worker (#\d+) \(bad\d at [^)]*\): authentication failed", master.log())
     if len(refused) != 2:
         fail(f"expected two refusals logged with connection numbers (#N), got {refused}")

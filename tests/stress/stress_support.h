@@ -49,8 +49,7 @@ class BruteForce {
   /// tracer's order: t ascending, then the higher id), each with whether it is a rounding
   /// artefact (EdgeRounding). One pass over all triangles: for the few rays that differ.
   struct Accepted {
-    float t = 0.0f;
-    std::uint32_t id = 0;
+    RayHit hit;  ///< t, beta, gamma and id as the float test gives them
     bool artefact = false;
   };
   [[nodiscard]] std::vector<Accepted> accepted(const RayQuery& ray) const;
@@ -92,11 +91,13 @@ struct Agreement {
 /// slivers, or for a ray lying in (or grazing) a neighbour's plane, such "hits" belong to
 /// triangles the exact ray never touches, so no leaf on the ray's path references them and the
 /// kd-tree never tests them, while the brute force does. `Explained` accepts exactly those
-/// differences: every triangle the float test accepts before the kd-tree's hit (in the tracer's
-/// order; all of them where the kd-tree finds none or reports no occlusion) is an artefact, and
-/// the kd-tree reports no occlusion the brute force does not. An artefact is a triangle whose
-/// float weights put the hit within 2^-20 of an edge, or one the exact ray misses: its smallest
-/// barycentric weight in double precision (Moller-Trumbore on the float vertices) below -1e-6.
+/// differences: the kd-tree's hit is one the float test gives (the same t, weights and id) and
+/// agrees with its occlusion answer, every triangle the float test accepts before that hit (in
+/// the tracer's order; all of them where the kd-tree finds none) is an artefact, and the
+/// kd-tree reports no occlusion the brute force does not. An artefact is a triangle whose float
+/// weights put the hit within 2^-20 of an edge, or one the exact ray misses: its smallest
+/// barycentric weight in double precision (Moller-Trumbore on the float vertices, trusted only
+/// where the ray is not nearly parallel to the plane) below -1e-6.
 /// The second covers slivers far below a float ulp wide at a vertex shared by thousands, where
 /// the float weights carry no information: at ray 133 of the fan case the float test accepts
 /// 15 triangles, all of which the exact ray misses (the nearest by -2.4e-3 in weight, 5.4e-5
