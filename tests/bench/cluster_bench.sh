@@ -107,6 +107,8 @@ case "$mode" in
 import json, re, statistics, sys
 ms = [float(m.group(1)) for m in re.finditer(r"in ([0-9.]+) s:", open(sys.argv[1]).read())]
 render = [float(m.group(1)) for m in re.finditer(r"render ([0-9.]+) ms", open(sys.argv[1]).read())]
+if not ms or not render or statistics.median(render) <= 0 or statistics.median(ms) <= 0:
+    sys.exit(f"cluster_bench: rtc-render's log has no usable frame times ({sys.argv[1]})")
 print(json.dumps({"type": "render", "scene": sys.argv[2], "threads": int(sys.argv[3]),
                   "median_fps_with_write": 1.0 / statistics.median(ms),
                   "median_fps_render_only": 1000.0 / statistics.median(render)}))
