@@ -630,7 +630,10 @@ void traverse_coherent(const KdTree& tree, const RayPacket<N>& ray, vbool<N> act
   };
   constexpr bool kLoadAhead = N == 1 || kOcclusion;
   [[maybe_unused]] KdNode ahead = nodes[index];         // kLoadAhead: the node visited next
-  [[maybe_unused]] vfloat<N> ahead_t = plane_t(ahead);  // N = 1: its plane's distances
+  // N = 1: its plane's distances. Packets compute a node's only once they know it is inner: a
+  // leaf's axis bits read 3, past the three components of the origin (a one-leaf tree's root).
+  [[maybe_unused]] vfloat<N> ahead_t;
+  if constexpr (N == 1) ahead_t = plane_t(ahead);
   for (;;) {
     KdNode node;
     vfloat<N> t_split;

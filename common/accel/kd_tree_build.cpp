@@ -971,6 +971,9 @@ void sort_distinct(std::vector<std::uint32_t>& v, std::size_t limit, std::vector
 // only on the input order, whatever the digits. Below 64 events: by (position, code), with
 // AVX-512 or AVX2 (BuildContext) by rank, else with std::sort on 64-bit keys; the same order.
 void sort_events(Event* ev, std::size_t n, std::vector<Event>& buffer, const BuildContext& ctx) {
+  // Nothing to order; and an empty list may come as a null pointer, which the small sorts'
+  // memcpy must not be given (UBSan: "null pointer passed as argument 1").
+  if (n < 2) return;
   if (n < 64 && ctx.avx512) {
     sort_small_events_avx512(ev, n);
     return;
