@@ -1164,9 +1164,13 @@ def case_load_64(c):
     expect_exit(master, 0, 5, "finish every frame")
     for w in workers:
         expect_exit(w, 0, 30, "exit 0 after the master's Goodbye")
-    joined = len(re.findall(r"worker w\d+ .* joined", master.log()))
-    if joined != n_workers:
-        fail(f"{joined} workers joined, expected {n_workers}")
+    # Every worker joined (by name: one dropped under load, e.g. by a sanitizer build's missed
+    # heartbeats, joins again under a new number, which is no failure of the master).
+    joins = re.findall(r"worker w\d+ \((\S+) at [^)]*\) joined", master.log())
+    if len(set(joins)) != n_workers:
+        fail(f"{len(set(joins))} workers joined, expected {n_workers}")
+    if len(joins) > n_workers:
+        print(f"{len(joins) - n_workers} of them joined again after a drop")
     records, summary = read_stats(stats)
     if sorted(r["frame"] for r in records) != list(range(0, 8)) or summary is None:
         fail(f"stats: frames {[r['frame'] for r in records]}, summary {summary}")
