@@ -548,7 +548,7 @@ int run(int argc, char** argv) {
     // The frame timed (the first), checked as rtc-render checks the frames it renders, so that a
     // degenerate camera is named with the file instead of failing inside the first trace.
     rtc::check_cameras(sc, sc.animation.frame_begin, sc.animation.frame_begin,
-                       rtc::scene_label(scene_path.empty() ? scene_path : path.string()));
+                       rtc::scene_label(path.string()));
     return sc;
   };
   const int thread_count = threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency());

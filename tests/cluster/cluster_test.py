@@ -633,6 +633,17 @@ def read_challenge(sock, timeout=10):
     fail(f"no Challenge from the master within {timeout} s")
 
 
+def send_wrong_proof(s, name):
+    """On a fresh connection to the master: reads its Challenge, answers with a Hello named `name`
+    and the proof of a wrong token, and reads until the master closes (10 s at most). Returns
+    (auth_required, what the master sent after the Challenge, whether it closed)."""
+    nonce, auth_required, build = read_challenge(s)
+    proof = hmac.new(b"wrong token", AUTH_CONTEXT + nonce, hashlib.sha256).digest()
+    s.sendall(message(MSG_HELLO, hello_payload(name, build)) + message(MSG_AUTH, proof))
+    data, closed = read_until_closed(s, 10)
+    return auth_required, data, closed
+
+
 def case_bad_peers(c):
     token = c.token_file("token", "correct horse battery staple")
     wrong_token = c.token_file("wrong-token", "not the token")
@@ -661,12 +672,9 @@ def case_bad_peers(c):
     # (a) a correct Hello, then the proof of a wrong token.
     s, me = peer()
     with s:
-        nonce, auth_required, build = read_challenge(s)
-        if auth_required != 1:
-            fail(f"the master with --token-file sent auth_required={auth_required}")
-        proof = hmac.new(b"wrong token", AUTH_CONTEXT + nonce, hashlib.sha256).digest()
-        s.sendall(message(MSG_HELLO, hello_payload("bad-auth", build)) + message(MSG_AUTH, proof))
-        data, closed = read_until_closed(s, 10)
+        auth_required, data, closed = send_wrong_proof(s, "bad-auth")
+    if auth_required != 1:
+        fail(f"the master with --token-file sent auth_required={auth_required}")
     if not closed:
         fail("(a) the master kept the connection with a wrong proof open")
     errors = [p for t, p in parse_messages(data) if t == MSG_ERROR]
@@ -744,10 +752,7 @@ def case_worker_numbers(c):
     host, port = split_address(addr)
     for i in range(2):  # two wrong proofs
         with socket.create_connection((host, port), timeout=10) as s:
-            nonce, _, build = read_challenge(s)
-            proof = hmac.new(b"wrong token", AUTH_CONTEXT + nonce, hashlib.sha256).digest()
-            s.sendall(message(MSG_HELLO, hello_payload(f"bad{i}", build)) + message(MSG_AUTH, proof))
-            read_until_closed(s, 10)
+            send_wrong_proof(s, f"bad{i}")
     with socket.create_connection((host, port), timeout=10) as s:  # silent until the auth timeout
         read_challenge(s)
         _, closed = read_until_closed(s, 10)

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <numbers>
+#include <optional>
 #include <random>
 
 #include <fmt/format.h>
@@ -108,15 +109,12 @@ std::vector<BruteForce::Accepted> BruteForce::accepted(const RayQuery& ray) cons
     // ray is not nearly parallel to the plane (det well above double's rounding of it), so a
     // real hit on a grazed triangle is never taken for an exact miss.
     const glm::uvec3 t = triangles_[acc.id];
-    const glm::dvec3 o(ray.org), d(ray.dir), a(positions_[t.x]), b(positions_[t.y]), c(positions_[t.z]);
-    const glm::dvec3 e1 = b - a, e2 = c - a, p = glm::cross(d, e2);
-    const double det = glm::dot(e1, p);
-    bool exact_miss = false;
-    if (std::fabs(det) > 1e-10 * glm::length(e1) * glm::length(e2) * glm::length(d)) {
-      const glm::dvec3 s = o - a, q = glm::cross(s, e1);
-      const double u = glm::dot(s, p) / det, v = glm::dot(d, q) / det;
-      exact_miss = std::min({u, v, 1.0 - u - v}) < -1e-6;
-    }
+    const glm::dvec3 a(positions_[t.x]), b(positions_[t.y]), c(positions_[t.z]);
+    double min_bary = 0.0, det = 0.0;
+    (void)test::ray_triangle_t(ray, positions_[t.x], positions_[t.y], positions_[t.z], &min_bary, &det);
+    const bool exact_miss = std::fabs(det) > 1e-10 * glm::length(b - a) * glm::length(c - a) *
+                                                 glm::length(glm::dvec3(ray.dir)) &&
+                            min_bary < -1e-6;
     out.push_back(Accepted{RayHit{w.t, w.beta, w.gamma, acc.id}, at_edge || exact_miss});
   }
   std::sort(out.begin(), out.end(), [](const Accepted& a, const Accepted& b) {
@@ -201,8 +199,7 @@ Agreement expect_agrees_with_brute_force(const KdTree& tree, const BruteForce& o
   oracle.occluded(rays, want_occ);
   for (const RayHit& h : want) a.hits += h.prim != kNoHit;
   int reported = 0;
-  std::vector<std::vector<BruteForce::Accepted>> accepted(rays.size());  // filled for the rays that differ
-  std::vector<bool> have_accepted(rays.size(), false);
+  std::vector<std::optional<std::vector<BruteForce::Accepted>>> accepted(rays.size());  // for the rays that differ
   for (const Isa isa : available_isas()) {
     const TraceKernels& k = trace_kernels(isa);
     for (const bool packets : {true, false}) {
@@ -213,10 +210,7 @@ Agreement expect_agrees_with_brute_force(const KdTree& tree, const BruteForce& o
         const bool same_occ = got_occ[i] == want_occ[i];
         if (same_hit && same_occ) continue;
         if (edges == EdgeRounding::Explained && want[i].prim != kNoHit) {
-          if (!have_accepted[i]) {
-            accepted[i] = oracle.accepted(rays[i]);
-            have_accepted[i] = true;
-          }
+          if (!accepted[i]) accepted[i] = oracle.accepted(rays[i]);
           // The kd-tree's hit must be one the float test gives (the same bits: t, weights, id)
           // and agree with its own occlusion answer; every hit the brute force has before it
           // (all of them where the kd-tree has none), and for occlusion all of them where the
@@ -224,11 +218,11 @@ Agreement expect_agrees_with_brute_force(const KdTree& tree, const BruteForce& o
           const bool got_hit = got[i].prim != kNoHit;
           bool explained = !(got_occ[i] != 0 && want_occ[i] == 0) && got_hit == (got_occ[i] != 0);
           if (got_hit) {
-            explained = explained && std::any_of(accepted[i].begin(), accepted[i].end(), [&](const auto& h) {
+            explained = explained && std::any_of(accepted[i]->begin(), accepted[i]->end(), [&](const auto& h) {
               return std::memcmp(&h.hit, &got[i], sizeof(RayHit)) == 0;
             });
           }
-          for (const BruteForce::Accepted& h : accepted[i]) {
+          for (const BruteForce::Accepted& h : *accepted[i]) {
             if (!explained) break;
             const bool before_closest =
                 !got_hit || h.hit.t < got[i].t || (h.hit.t == got[i].t && h.hit.prim > got[i].prim);

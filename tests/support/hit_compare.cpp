@@ -11,11 +11,12 @@
 namespace rtc::test {
 
 double ray_triangle_t(const RayQuery& ray, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
-                      double* min_bary) {
+                      double* min_bary, double* det_out) {
   const glm::dvec3 o(ray.org), d(ray.dir), A(a), B(b), C(c);
   const glm::dvec3 e1 = B - A, e2 = C - A;
   const glm::dvec3 p = glm::cross(d, e2);
   const double det = glm::dot(e1, p);
+  if (det_out != nullptr) *det_out = det;
   if (det == 0.0) return std::numeric_limits<double>::quiet_NaN();
   const double inv = 1.0 / det;
   const glm::dvec3 s = o - A;

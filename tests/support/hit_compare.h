@@ -65,9 +65,10 @@ HitComparison compare_hits(std::span<const glm::vec3> positions, std::span<const
                            double abs_tol = 0.0);
 
 /// Exact-ish ray/triangle distance in double (Möller-Trumbore); NaN for a miss of the plane.
-/// `min_bary` gets the smallest barycentric weight of the hit point.
+/// `min_bary` gets the smallest barycentric weight of the hit point (left as it is for NaN),
+/// `det` the determinant (e1 . (dir x e2); 0 for a ray parallel to the plane).
 double ray_triangle_t(const RayQuery& ray, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
-                      double* min_bary = nullptr);
+                      double* min_bary = nullptr, double* det_out = nullptr);
 
 /// The primary rays through every pixel centre (CAMERA.md), row by row, with (0, inf).
 std::vector<RayQuery> pixel_centre_rays(const CameraRays& camera);
