@@ -7,8 +7,8 @@
 #   N      workers (default: the machine's core count); each gets cores/N threads (at least 1)
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
-# Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the file's
-# name, or its folder's for a file named view.json); --no-out among them (taken by this script)
+# Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the scene's
+# name, as rtc-render names it); --no-out among them (taken by this script)
 # writes no frames at all: a frame-rate run. --min-workers among them replaces the default, N.
 # Binaries come from $RTC_BUILD_DIR (default build/release); they are built when missing.
 set -euo pipefail
@@ -59,9 +59,23 @@ done
 if [ "$has_out" = 0 ]; then
   name="default"
   if [ ${#scene[@]} -gt 0 ]; then
-    name="$(basename "${scene[0]%.*}")"
-    # A scene pack's view.json is named by its folder (rtc-render takes the scene's "name" field).
-    [ "$name" = "view" ] && name="$(basename "$(cd -- "$(dirname "${scene[0]}")" >/dev/null && pwd)")"
+    # The name rtc-render gives the scene: a scene JSON's "name" field; else the file's name,
+    # or its folder's for a file named view.json (a scene pack's).
+    name=""
+    case "${scene[0]}" in
+      *.json | *.JSON)
+        name="$(python3 -c 'import json, sys
+j = json.load(open(sys.argv[1]))
+n = j.get("name") if isinstance(j, dict) else None
+print(n if isinstance(n, str) else "")' "${scene[0]}" 2>/dev/null || true)" ;;
+    esac
+    if [ -z "$name" ]; then
+      name="$(basename "${scene[0]%.*}")"
+      [ "$name" = "view" ] && name="$(basename "$(cd -- "$(dirname "${scene[0]}")" >/dev/null && pwd)")"
+    fi
+    # As a file name (rtc::file_stem_for): no folder separator, '#' or '%'.
+    name="$(printf '%s' "$name" | LC_ALL=C tr -c 'A-Za-z0-9._+-' '_')"
+    [[ "$name" =~ ^\.*$ ]] && name="scene"
   fi
   mkdir -p out/cluster
   master_args+=(--out "out/cluster/${name}_####.png")

@@ -168,7 +168,7 @@ int run(int argc, char** argv) {
   const bool multiple = frames.last > frames.first;
   rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
   if (out_pattern.empty()) {
-    out_pattern = "out/" + scene.name + (multiple ? "_####.png" : ".png");
+    out_pattern = "out/" + rtc::file_stem_for(scene.name) + (multiple ? "_####.png" : ".png");
     std::filesystem::create_directories("out");
   }
   // A bad pattern, extension or output folder is reported before anything is rendered.

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -39,12 +40,25 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
   if (frame < 0) bad_pattern(pattern, fmt::format("frame number {} is negative", frame));
   if (pattern.back() == '/') bad_pattern(pattern, "has no file name");
 
+  // A pattern with a printf-style placeholder treats '#' as an ordinary character, as printf
+  // does, so a folder or file name with a '#' in it can be written ("take#2/f_%04d.exr").
+  bool printf_style = false;
+  for (std::size_t j = 0; j < pattern.size(); ++j) {
+    if (pattern[j] != '%') continue;
+    if (j + 1 < pattern.size() && pattern[j + 1] == '%') {
+      ++j;
+      continue;
+    }
+    printf_style = true;
+    break;
+  }
+
   std::string out;
   int placeholders = 0;
   std::size_t i = 0;
   while (i < pattern.size()) {
     const char c = pattern[i];
-    if (c == '#') {
+    if (c == '#' && !printf_style) {
       std::size_t end = i;
       while (end < pattern.size() && pattern[end] == '#') ++end;
       out += zero_padded(frame, end - i);
@@ -97,6 +111,18 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
     out.insert(insert_at, fmt::format("_{}", zero_padded(frame, kInsertedWidth)));
   }
   return out;
+}
+
+std::string file_stem_for(std::string_view name) {
+  std::string out(name);
+  bool dots_only = true;
+  for (char& c : out) {
+    const bool keep = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                      c == '.' || c == '_' || c == '+' || c == '-';
+    if (!keep) c = '_';
+    dots_only = dots_only && c == '.';
+  }
+  return dots_only ? std::string("scene") : out;
 }
 
 std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames) {

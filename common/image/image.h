@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -123,10 +124,16 @@ std::uint8_t linear_to_unorm8(float value);
 ///   "frames/f_%04d.exr" -> "frames/f_0007.exr" (printf-style "%d" or "%0Nd"; "%%" is a '%'),
 ///   "out.exr" -> "out_0007.exr" when `multiple_frames`, else unchanged (no placeholder:
 ///   "_NNNN" goes before the file name's extension, or at the end when it has none).
-/// Wider frame numbers are not cut ("f_##" with 123 gives "f_123"). Throws rtc::Error naming
-/// the pattern for an empty pattern or file name, more than one placeholder, mixed '#' and
-/// '%' placeholders, any other '%' sequence, or a negative frame.
+/// Wider frame numbers are not cut ("f_##" with 123 gives "f_123"). A pattern with a printf-style
+/// placeholder takes '#' literally ("take#2/f_%04d.exr" -> "take#2/f_0007.exr"). Throws
+/// rtc::Error naming the pattern for an empty pattern or file name, more than one placeholder,
+/// any other '%' sequence, or a negative frame.
 std::string expand_frame_pattern(const std::string& pattern, int frame, bool multiple_frames);
+
+/// `name` (a scene's name) as a file name's stem that is also a frame pattern's literal text:
+/// every character but ASCII letters, digits, '.', '_', '+' and '-' becomes '_' (so no folder
+/// separator, '#' or '%'), and an empty name or one of dots only gives "scene".
+std::string file_stem_for(std::string_view name);
 
 /// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, a first
 /// frame's name that is a folder, output_file_problem's, or a folder this process cannot write

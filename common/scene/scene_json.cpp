@@ -321,7 +321,12 @@ class SceneJsonLoader {
                       "resolution", "source", "license", "notes", "materials", "background",
                       "ambient", "render", "animation"});
     scene_.source = path_;
+    // Without a "name", the file's stem; a scene pack's view.json is named by its folder.
     scene_.name = path_.stem().string();
+    if (scene_.name == "view") {
+      const std::string folder = std::filesystem::absolute(path_).lexically_normal().parent_path().filename().string();
+      if (!folder.empty()) scene_.name = folder;
+    }
     scene_.materials.emplace_back();
     if (const Json* v = r_.optional(root, "name")) scene_.name = r_.string(*v, "name");
     for (const char* key : {"source", "license", "notes"}) {

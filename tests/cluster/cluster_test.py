@@ -1610,15 +1610,16 @@ def _processes_with(text):
     return found
 
 
-def _run_launcher(c, name, extra, interrupt):
-    """deploy/launch-local.sh 2 -- EXTRA in its own process group (as from a terminal); with
-    `interrupt`, SIGINT to the whole group once the first frame is logged. Returns (rc, log)."""
+def _run_launcher(c, name, extra, interrupt, scene=None):
+    """deploy/launch-local.sh 2 [SCENE] -- EXTRA in its own process group (as from a terminal);
+    with `interrupt`, SIGINT to the whole group once the first frame is logged. Returns (rc, log)."""
     script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
     build = os.path.dirname(os.path.dirname(os.path.abspath(c.args.master)))
     log_path = c.path(f"{name}.log")
     env = dict(os.environ, RTC_BUILD_DIR=build, TMPDIR=c.tmp)
     with open(log_path, "wb") as log:
-        p = subprocess.Popen(["bash", script, "2", "--", *extra], stdin=subprocess.DEVNULL, stdout=log,
+        p = subprocess.Popen(["bash", script, "2", *([scene] if scene else []), "--", *extra],
+                             stdin=subprocess.DEVNULL, stdout=log,
                              stderr=subprocess.STDOUT, cwd=c.tmp, env=env, start_new_session=True)
     def text():
         with open(log_path, encoding="utf-8", errors="replace") as f:
@@ -1687,6 +1688,22 @@ def case_launch_local(c):
     if os.path.exists(os.path.join(c.tmp, "out")):
         fail("launch-local.sh -- --out=PATH also wrote to out/cluster")
     print("--no-out wrote nothing; --out=PATH and --min-workers=1 were taken as given")
+    # Without --out the frames are named by the scene's "name" field, as rtc-render names them,
+    # with the characters a file name cannot take ('/', '#', '%', spaces) as '_'.
+    scene = c.path("named.json")
+    cube = os.path.join(TEMPORAL_SCENES, "cube.obj")
+    with open(scene, "w", encoding="utf-8") as f:
+        json.dump({"name": "lab #2/take%3", "mesh": cube, "resolution": [32, 24]}, f)
+    rc, log = _run_launcher(c, "launch-named", ["--frames", "0"], False, scene=scene)
+    cluster_out = os.path.join(c.tmp, "out", "cluster")
+    written = sorted(os.listdir(cluster_out)) if os.path.isdir(cluster_out) else []
+    if rc != 0 or written != ["lab__2_take_3_0000.png"]:
+        fail(f"launch-local.sh with a named scene: exit {rc}, files {written}, expected lab__2_take_3_0000.png:\n{log}")
+    r = subprocess.run([os.path.abspath(c.args.render), scene], cwd=c.tmp, capture_output=True, text=True, timeout=90)
+    if r.returncode != 0 or not os.path.isfile(os.path.join(c.tmp, "out", "lab__2_take_3.png")):
+        fail(f"rtc-render with a named scene: exit {r.returncode}, out/ holds {sorted(os.listdir(os.path.join(c.tmp, 'out')))}:\n"
+             f"{r.stdout}{r.stderr}")
+    print("a named scene's frames: out/cluster/lab__2_take_3_0000.png (launch-local), out/lab__2_take_3.png (rtc-render)")
 
 
 # ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------

@@ -1568,11 +1568,16 @@ TEST(KdTraversal, AgreesWithBruteForceDouble) {
       const test::HitComparison c =
           test::compare_hits(s.positions, s.triangles, rays, hits, ref, 1e-5, 1e-3, 3e-6);
       SCOPED_TRACE(c.summary());
+      std::printf("AgreesWithBruteForceDouble: %s rays, %s, %zu triangles: %s\n", coherent ? "coherent" : "incoherent",
+                  test_name(watertight), s.triangles.size(), c.summary().c_str());
       for (std::size_t i : c.examples) ADD_FAILURE() << test::describe_ray(rays[i]);
       // A ray grazing a shared edge may slip past in float (Wald's test is not watertight);
       // such misses are rare and must all be edge cases: no triangle interior is ever missed.
       EXPECT_EQ(c.hit_miss_disagree - c.hit_miss_on_edge, 0u);
       EXPECT_LE(c.hit_miss_disagree, rays.size() / 10000);
+      // Likewise a nearer triangle's silhouette edge clipped by one side and slipped past by the
+      // other: allowed, as rare as the cracks (none in any of these eight runs when written).
+      EXPECT_LE(c.edge_grazes, rays.size() / 10000);
       EXPECT_EQ(c.same_prim_t_bad, 0u);
       EXPECT_EQ(c.bad_ties, 0u);
     }

@@ -528,6 +528,17 @@ TEST(FramePattern, PrintfStyleIsAccepted) {
   EXPECT_EQ(expand_frame_pattern("100%%_f%03d.exr", 9, true), "100%_f009.exr");
 }
 
+// With a printf-style placeholder '#' is an ordinary character, in folders and file names, so
+// any name can be written; "%%" alone is no placeholder, so '#' runs still count beside it.
+TEST(FramePattern, HashIsLiteralBesidePrintfStyle) {
+  EXPECT_EQ(expand_frame_pattern("take#2/f_%04d.exr", 7, true), "take#2/f_0007.exr");
+  EXPECT_EQ(expand_frame_pattern("f_##_%d.exr", 42, true), "f_##_42.exr");
+  EXPECT_EQ(expand_frame_pattern("#%d#", 3, false), "#3#");
+  EXPECT_EQ(expand_frame_pattern("100%%/f_##.exr", 3, true), "100%/f_03.exr");
+  // Without a placeholder at all the frame number is inserted as usual.
+  EXPECT_EQ(expand_frame_pattern("100%%.exr", 3, true), "100%_0003.exr");
+}
+
 TEST(FramePattern, WiderFrameNumbersAreNotCut) {
   EXPECT_EQ(expand_frame_pattern("f_##.exr", 123, true), "f_123.exr");
   EXPECT_EQ(expand_frame_pattern("f_%02d.exr", 12345, true), "f_12345.exr");
@@ -546,12 +557,25 @@ TEST(FramePattern, NoPlaceholderGetsNumberBeforeExtensionForManyFrames) {
   EXPECT_EQ(expand_frame_pattern("out.exr", 123456, true), "out_123456.exr");
 }
 
+// A scene's name as a file name's stem, also literal inside a frame pattern.
+TEST(FramePattern, FileStemForKeepsOnlyPlainCharacters) {
+  EXPECT_EQ(file_stem_for("spd-tree"), "spd-tree");
+  EXPECT_EQ(file_stem_for("2CylinderEngine v1.2+x_y"), "2CylinderEngine_v1.2+x_y");
+  EXPECT_EQ(file_stem_for("lab #2/take%3"), "lab__2_take_3");
+  EXPECT_EQ(file_stem_for("caf\xc3\xa9"), "caf__");  // each byte of a non-ASCII letter
+  EXPECT_EQ(file_stem_for(""), "scene");
+  EXPECT_EQ(file_stem_for(".."), "scene");
+  EXPECT_EQ(file_stem_for("/"), "_");
+  // Whatever the name, the default pattern built on it expands to that stem and the number.
+  EXPECT_EQ(expand_frame_pattern("out/" + file_stem_for("a#b%d/c") + "_####.png", 5, true), "out/a_b_d_c_0005.png");
+}
+
 TEST(FramePattern, BadPatternsThrowNamingThePattern) {
   const std::vector<std::string> bad = {
       "",             // empty
       "frames/",      // no file name
       "f_##_##.exr",  // two placeholders
-      "f_##_%d.exr",  // mixed placeholders
+      "f_%d_%d.exr",  // two printf placeholders
       "f_%s.exr",     // not a number
       "f_%4d.exr",    // space padding
       "f_%0d.exr",    // zero width

@@ -225,6 +225,25 @@ TEST(SceneJson, RelativePathsResolveAgainstTheJsonFolder) {
   EXPECT_EQ(scene.triangle_count(), 1u);
 }
 
+// The scene's name (logs, output names): its "name" field, else the file's stem, except that a
+// scene pack's view.json takes its folder's name.
+TEST(SceneJson, NameDefaultsToTheFileOrAViewJsonsFolder) {
+  TempDir dir;
+  (void)dir.write("tri.obj", kTriangle);
+  EXPECT_EQ(load_scene(dir.write("courtyard.json", R"({"mesh": "tri.obj"})")).name, "courtyard");
+  EXPECT_EQ(load_scene(dir.write("named.json", R"({"mesh": "tri.obj", "name": "demo"})")).name, "demo");
+  (void)dir.write("pack/spd-lab/tri.obj", kTriangle);
+  EXPECT_EQ(load_scene(dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj"})")).name, "spd-lab");
+  EXPECT_EQ(load_scene(dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj", "name": "lab"})")).name, "lab");
+  // A relative path to view.json in the current folder still finds the folder's name.
+  (void)dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj"})");
+  const auto cwd = std::filesystem::current_path();
+  std::filesystem::current_path(dir.path() / "pack" / "spd-lab");
+  const std::string name = load_scene("view.json").name;
+  std::filesystem::current_path(cwd);
+  EXPECT_EQ(name, "spd-lab");
+}
+
 TEST(SceneJson, TriangleCountMismatchIsOnlyAWarning) {
   JsonCase c;
   EXPECT_EQ(load_scene(c.write(R"({"mesh": "tri.obj", "triangles": 12345})")).triangle_count(), 1u);
