@@ -22,6 +22,8 @@ packages=(
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libtinygltf-dev libtinyobjloader-dev
   libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev
+  # launch-local.sh reads a scene JSON's "name" with it (it names the frames after the scene)
+  python3
 )
 if [ "$build_only" = 0 ]; then
   packages+=(
@@ -30,10 +32,13 @@ if [ "$build_only" = 0 ]; then
     # tests/fuzz: libFuzzer targets (clang with its runtime); scene_load_timing compares Assimp
     clang-14 libclang-rt-14-dev libassimp-dev
     iproute2 iperf3 python3 gnuplot-nox
-    # tests/deploy: a Docker engine started by hand (no systemd), compose v1, a base image
-    # made without a registry (debootstrap + docker import)
-    docker.io containerd runc docker-compose debootstrap
+    # tests/deploy: compose v1, a base image made without a registry (debootstrap + docker import)
+    docker-compose debootstrap
   )
+  # ... and a Docker engine started by hand (no systemd): Debian's, unless one is installed
+  # already (Docker's own docker-ce and containerd.io conflict with Debian's containerd and runc,
+  # and installing those would remove them).
+  command -v docker >/dev/null 2>&1 || packages+=(docker.io containerd runc)
 fi
 
 missing=()
@@ -61,7 +66,7 @@ if [ "$(id -u)" -ne 0 ]; then
   command -v sudo >/dev/null 2>&1 || { echo "install-deps: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
   sudo_cmd=(sudo)
 fi
-export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -qq
-"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# Through env: sudo's env_reset would drop an exported DEBIAN_FRONTEND (iperf3 asks a question).
+"${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+"${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"
 echo "install-deps: done"

@@ -10,7 +10,10 @@
 # Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the scene's
 # name, as rtc-render names it); --no-out among them (taken by this script)
 # writes no frames at all: a frame-rate run. --min-workers among them replaces the default, N.
-# Binaries come from $RTC_BUILD_DIR (default build/release); they are built when missing.
+# Binaries come from $RTC_BUILD_DIR (default build/release); they are built there when missing
+# (the `programs` preset for a folder named programs, else `release`).
+# Ctrl-C (SIGINT to the terminal's process group) and SIGTERM to this script both make the master
+# finish the frames in flight; then everything stops.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 build="${RTC_BUILD_DIR:-$root/build/release}"
@@ -41,8 +44,10 @@ fi
 extra=("$@")
 
 if [ ! -x "$build/master/rtc-master" ] || [ ! -x "$build/worker/rtc-worker" ]; then
-  echo "launch-local: building rtc-master and rtc-worker in $build"
-  (cd "$root" && cmake --preset release >/dev/null && cmake --build --preset release --target rtc-master rtc-worker)
+  preset=release
+  [ "$(basename "$build")" = programs ] && preset=programs
+  echo "launch-local: building rtc-master and rtc-worker in $build (preset $preset)"
+  (cd "$root" && cmake --preset "$preset" -B "$build" >/dev/null && cmake --build "$build" --target rtc-master rtc-worker)
 fi
 
 has_out=0
@@ -53,6 +58,9 @@ for a in "${extra[@]}"; do
     --no-out) has_out=1; continue ;;  # this script's own: no --out added, frames not written
     --out | --out=*) has_out=1 ;;
     --min-workers | --min-workers=*) has_min_workers=1 ;;
+    --listen | --listen=* | --ready-file | --ready-file=*)
+      echo "launch-local: $a is this script's own (the master listens on a free loopback port); start rtc-master by hand to choose it" >&2
+      exit 2 ;;
   esac
   master_args+=("$a")
 done
@@ -61,15 +69,20 @@ if [ "$has_out" = 0 ]; then
   if [ ${#scene[@]} -gt 0 ]; then
     # The name rtc-render gives the scene: a scene JSON's "name" field; else the file's name,
     # or its folder's for a file named view.json (a scene pack's).
+    # (python3 reads the JSON; without it, or for a file it cannot read, the file's name: rtc-master
+    # reports what is wrong with the file itself.)
     name=""
-    case "${scene[0]}" in
-      *.json | *.JSON)
-        name="$(python3 -c 'import json, sys
-j = json.load(open(sys.argv[1]))
+    field=""
+    scene_lower="${scene[0],,}"
+    if [[ "$scene_lower" == *.json ]] && command -v python3 >/dev/null 2>&1; then
+      field="$(python3 -c 'import json, sys
+j = json.load(open(sys.argv[1], encoding="utf-8"))
 n = j.get("name") if isinstance(j, dict) else None
-print(n if isinstance(n, str) else "")' "${scene[0]}" 2>/dev/null || true)" ;;
-    esac
-    if [ -z "$name" ]; then
+print("=" + n if isinstance(n, str) else "")' "${scene[0]}" 2>/dev/null || true)"
+    fi
+    if [ -n "$field" ]; then
+      name="${field#=}"
+    else
       name="$(basename "${scene[0]%.*}")"
       [ "$name" = "view" ] && name="$(basename "$(cd -- "$(dirname "${scene[0]}")" >/dev/null && pwd)")"
     fi
@@ -113,8 +126,12 @@ cleanup() {
 trap cleanup EXIT
 # Ctrl-C reaches the master directly (same process group): it finishes the frames in flight with
 # the workers, which run in their own sessions so the terminal's SIGINT does not stop them first.
+# A SIGTERM to this script alone (kill, a supervisor) is passed on to the master, which then does
+# the same; a second signal to the master would abandon the frames, so SIGINT is not passed on.
 interrupted=0
-trap 'interrupted=1; echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT TERM
+trap 'interrupted=1; echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT
+trap 'interrupted=1; echo "launch-local: SIGTERM: stopping (the master finishes the frames in flight)" >&2
+      [ -n "$master_pid" ] && kill -TERM "$master_pid" 2>/dev/null || true' TERM
 
 "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
 master_pid=$!

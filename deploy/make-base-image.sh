@@ -5,18 +5,20 @@
 # is not needed: `docker build` pulls the real images of the same names.
 # Usage: ./deploy/make-base-image.sh [--force]     (root; a running Docker engine; debootstrap)
 #   --force   remake the images even when both names exist
-# Env: RTC_DEBIAN_MIRROR (default http://deb.debian.org/debian)
+# Env: RTC_DEBIAN_MIRROR (default http://deb.debian.org/debian), RTC_DEBIAN_SECURITY_MIRROR
+#      (the image's bookworm-security source; default http://deb.debian.org/debian-security)
 set -euo pipefail
 
 force=0
 for arg in "$@"; do
   case "$arg" in
     --force) force=1 ;;
-    -h|--help) sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "make-base-image: unknown option \"$arg\" (see --help)" >&2; exit 2 ;;
   esac
 done
 mirror="${RTC_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
+security_mirror="${RTC_DEBIAN_SECURITY_MIRROR:-http://deb.debian.org/debian-security}"
 images=(debian:bookworm debian:bookworm-slim)
 
 docker info >/dev/null 2>&1 || { echo "make-base-image: no Docker engine answers (docker info failed); start dockerd first" >&2; exit 1; }
@@ -28,7 +30,8 @@ fi
 command -v debootstrap >/dev/null 2>&1 || { echo "make-base-image: debootstrap is not installed (./deploy/install-deps.sh installs it)" >&2; exit 1; }
 
 work="$(mktemp -d "${TMPDIR:-/tmp}/rtc-base.XXXXXX")"
-trap 'rm -rf "$work"' EXIT
+# --one-file-system: never into a mount debootstrap may have left behind (proc, sys).
+trap 'rm -rf --one-file-system "$work"' EXIT
 root="$work/rootfs"
 start=$SECONDS
 echo "make-base-image: debootstrap --variant=minbase bookworm from $mirror"
@@ -50,7 +53,7 @@ Components: main
 Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
 
 Types: deb
-URIs: http://deb.debian.org/debian-security
+URIs: $security_mirror
 Suites: bookworm-security
 Components: main
 Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg

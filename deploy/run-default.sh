@@ -5,7 +5,9 @@
 # Usage: ./deploy/run-default.sh [N workers] [-- extra rtc-master args, e.g. --frames 0-9]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-./deploy/install-deps.sh
-cmake --preset release
-cmake --build --preset release --target rtc-master rtc-worker rtc-render
-exec ./deploy/launch-local.sh "$@"
+# Only what the three programs need (no test, benchmark or deployment tools: ./deploy/run-tests.sh
+# installs those), built by the `programs` preset into build/programs.
+./deploy/install-deps.sh --build-only
+cmake --preset programs
+cmake --build --preset programs
+RTC_BUILD_DIR="$PWD/build/programs" exec ./deploy/launch-local.sh "$@"

@@ -1612,7 +1612,8 @@ def _processes_with(text):
 
 def _run_launcher(c, name, extra, interrupt, scene=None):
     """deploy/launch-local.sh 2 [SCENE] -- EXTRA in its own process group (as from a terminal);
-    with `interrupt`, SIGINT to the whole group once the first frame is logged. Returns (rc, log)."""
+    with `interrupt`, SIGINT to the whole group once the first frame is logged (as Ctrl-C), or
+    with interrupt="term" SIGTERM to the script alone (as `kill`). Returns (rc, log)."""
     script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
     build = os.path.dirname(os.path.dirname(os.path.abspath(c.args.master)))
     log_path = c.path(f"{name}.log")
@@ -1627,7 +1628,10 @@ def _run_launcher(c, name, extra, interrupt, scene=None):
     try:
         if interrupt:
             wait_for(lambda: re.search(r"frame \d+ \[seq", text()) or p.poll() is not None, 60, "the first frame")
-            os.killpg(p.pid, signal.SIGINT)
+            if interrupt == "term":
+                os.kill(p.pid, signal.SIGTERM)
+            else:
+                os.killpg(p.pid, signal.SIGINT)
         try:
             rc = p.wait(timeout=90)
         except subprocess.TimeoutExpired:
@@ -1674,6 +1678,27 @@ def case_launch_local(c):
     if not 1 <= len(written) < 24:
         fail(f"expected some but not all 24 frames after Ctrl-C, got {len(written)}")
     print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+    # SIGTERM to the script alone is passed on to the master, which finishes the frames in flight
+    # as for Ctrl-C (before, the script only printed that it was stopping and waited for the run).
+    out_t = c.mkdir("terminated")
+    rc, log = _run_launcher(c, "launch-term", [*MEDIUM, "--frames", "0-23", "--temporal", "off", "--out",
+                                               os.path.join(out_t, "m_####.png")], "term")
+    if rc != 0 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
+        fail(f"launch-local.sh after SIGTERM: exit {rc}, expected 0 and the master stopping on SIGTERM:\n{log}")
+    written = sorted(f for f in os.listdir(out_t) if f.endswith(".png"))
+    if not 1 <= len(written) < 24:
+        fail(f"expected some but not all 24 frames after SIGTERM, got {len(written)}")
+    print(f"SIGTERM after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+    # The master's listening address and ready file are the script's own: refused with a reason
+    # before anything starts (the master used to fail on "--listen: At Most 1 required").
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
+    env = dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
+    for arg in ("--listen", "--ready-file=x"):
+        r = subprocess.run(["bash", script, "2", "--", *SMALL, arg, "127.0.0.1:0"], cwd=c.tmp, env=env,
+                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+        if r.returncode != 2 or f"launch-local: {arg} is this script's own" not in r.stderr or "master on" in r.stdout:
+            fail(f"launch-local.sh -- {arg}: exit {r.returncode}, expected 2 with a reason:\n{r.stdout}{r.stderr}")
+    print("--listen and --ready-file refused by the script with a reason")
     # The script's own --no-out writes nothing (a frame-rate run); --out=PATH and --min-workers=N
     # are the master's as given (each used to collide with the script's own, an error).
     rc, log = _run_launcher(c, "launch-noout", [*SMALL, "--frames", "0-1", "--no-out", "--min-workers=1"], False)

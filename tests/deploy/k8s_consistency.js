@@ -1,7 +1,8 @@
 // Cross-document checks of the rendered deploy/k8s that no schema can make: the Service selects
 // the master's pods and the workers connect to it by name and port, each worker renders on as
 // many threads as the CPU it requests, every Secret and PVC a pod mounts is in the render, the
-// pods run as the image's non-root user, and the workers spread over nodes.
+// pods run as the image's non-root user and can read the token Secret, the master's script refuses
+// the placeholder token, and the workers spread over nodes.
 // usage: node k8s_consistency.js FILE   (FILE "-" reads standard input; one kubectl kustomize render)
 'use strict';
 const fs = require('fs');
@@ -80,13 +81,44 @@ if (problems.length === 0) {
     check(pod.securityContext && pod.securityContext.runAsNonRoot === true && pod.securityContext.runAsUser === 10001,
           `${d.metadata.name}: runs as the image's user 10001, non-root`);
     for (const v of pod.volumes || []) {
-      if (v.secret) check(find('Secret', v.secret.secretName), `${d.metadata.name}: Secret ${v.secret.secretName} is in the render`);
+      if (v.secret) {
+        check(find('Secret', v.secret.secretName), `${d.metadata.name}: Secret ${v.secret.secretName} is in the render`);
+        // The Secret's files belong to root (group: the pod's fsGroup, when it has one), with
+        // defaultMode's bits (0644 unless given): the non-root user reads them through "other",
+        // or through the group when fsGroup makes it one of the user's groups.
+        const mode = v.secret.defaultMode === undefined ? 0o644 : Number(v.secret.defaultMode);
+        const readable = (mode & 0o004) !== 0 || ((mode & 0o040) !== 0 && pod.securityContext.fsGroup !== undefined);
+        check(readable, `${d.metadata.name}: user ${pod.securityContext.runAsUser} can read Secret ` +
+              `${v.secret.secretName}'s files (mode 0${mode.toString(8)}, fsGroup ${pod.securityContext.fsGroup})`);
+      }
       if (v.persistentVolumeClaim) {
         check(find('PersistentVolumeClaim', v.persistentVolumeClaim.claimName),
               `${d.metadata.name}: PVC ${v.persistentVolumeClaim.claimName} is in the render`);
       }
     }
   }
+  // The master's start script refuses the repository's placeholder token (anyone can read it),
+  // and only it: run with the token path pointed at a file and no rtc-master on PATH.
+  const script = masterContainer.command[masterContainer.command.length - 1];
+  const { spawnSync } = require('child_process');
+  const os = require('os');
+  const path = require('path');
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'rtc-k8s-token-'));
+  const tokenPath = path.join(dir, 'token');
+  const runWith = (token) => {
+    fs.writeFileSync(tokenPath, token);
+    return spawnSync('/bin/sh', ['-c', script.split('/var/run/rtc/token').join(tokenPath)],
+                     { env: { PATH: dir }, encoding: 'utf8', timeout: 10000 });
+  };
+  const placeholder = fs.readFileSync(path.join(__dirname, '..', '..', 'deploy', 'k8s', 'token'), 'utf8').trim();
+  const refused = runWith(placeholder + '\n');
+  check(refused.status === 1 && /placeholder/.test(refused.stderr),
+        `the master's script refuses the placeholder token (exit ${refused.status}: ${refused.stderr.trim()})`);
+  const random = runWith('0123456789abcdef0123456789abcdef\n');
+  check(!/placeholder/.test(random.stderr) && random.status !== 1,
+        `the master's script takes any other token (exit ${random.status}: ${random.stderr.trim()})`);
+  fs.rmSync(dir, { recursive: true, force: true });
+
   const hpa = docs.find((d) => d.kind === 'HorizontalPodAutoscaler');
   if (hpa) {
     check(hpa.spec.scaleTargetRef.kind === 'Deployment' && hpa.spec.scaleTargetRef.name === 'rtc-worker',
