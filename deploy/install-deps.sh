@@ -22,8 +22,6 @@ packages=(
   libglm-dev libtbb-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libtinygltf-dev libtinyobjloader-dev
   libasio-dev liblz4-dev libzstd-dev libssl-dev zlib1g-dev
-  # launch-local.sh reads a scene JSON's "name" with it (it names the frames after the scene)
-  python3
 )
 if [ "$build_only" = 0 ]; then
   packages+=(

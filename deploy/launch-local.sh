@@ -7,16 +7,26 @@
 #   N      workers (default: the machine's core count); each gets cores/N threads (at least 1)
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
-# Frames go to out/cluster/<scene>_####.png unless the extra args give --out (<scene>: the scene's
-# name, as rtc-render names it); --no-out among them (taken by this script)
-# writes no frames at all: a frame-rate run. --min-workers among them replaces the default, N.
-# Binaries come from $RTC_BUILD_DIR (default build/release); they are built there when missing
-# (the `programs` preset for a folder named programs, else `release`).
-# Ctrl-C (SIGINT to the terminal's process group) and SIGTERM to this script both make the master
-# finish the frames in flight; then everything stops.
+# Frames go to out/cluster/<scene>_NNNN.png (rtc-master --out-dir: <scene> is the scene's name as
+# rtc-render names its frames) unless the extra args give --out or --out-dir; --no-out among them
+# (taken by this script) writes no frames at all: a frame-rate run. --min-workers among them
+# replaces the default, N.
+# Binaries come from $RTC_BUILD_DIR; by default build/release when it has them, else
+# build/programs (what ./deploy/run-default.sh builds). Missing ones are built there (the
+# `release` preset for a folder named release, else `programs`, which needs only the packages of
+# ./deploy/install-deps.sh --build-only).
+# Ctrl-C (SIGINT to this script's process group) and SIGTERM to the script or its group are passed
+# on to the master, once per signal: the first makes it finish the frames in flight, then
+# everything stops; a second abandons them.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-build="${RTC_BUILD_DIR:-$root/build/release}"
+if [ -n "${RTC_BUILD_DIR:-}" ]; then
+  build="$(realpath -m -- "$RTC_BUILD_DIR")"
+elif [ -x "$root/build/release/master/rtc-master" ]; then
+  build="$root/build/release"
+else
+  build="$root/build/programs"
+fi
 
 workers="$(nproc)"
 scene=()
@@ -44,8 +54,8 @@ fi
 extra=("$@")
 
 if [ ! -x "$build/master/rtc-master" ] || [ ! -x "$build/worker/rtc-worker" ]; then
-  preset=release
-  [ "$(basename "$build")" = programs ] && preset=programs
+  preset=programs
+  [ "$(basename "$build")" = release ] && preset=release
   echo "launch-local: building rtc-master and rtc-worker in $build (preset $preset)"
   (cd "$root" && cmake --preset "$preset" -B "$build" >/dev/null && cmake --build "$build" --target rtc-master rtc-worker)
 fi
@@ -56,7 +66,7 @@ master_args=()
 for a in "${extra[@]}"; do
   case "$a" in
     --no-out) has_out=1; continue ;;  # this script's own: no --out added, frames not written
-    --out | --out=*) has_out=1 ;;
+    --out | --out=* | --out-dir | --out-dir=*) has_out=1 ;;
     --min-workers | --min-workers=*) has_min_workers=1 ;;
     --listen | --listen=* | --ready-file | --ready-file=*)
       echo "launch-local: $a is this script's own (the master listens on a free loopback port); start rtc-master by hand to choose it" >&2
@@ -65,33 +75,8 @@ for a in "${extra[@]}"; do
   master_args+=("$a")
 done
 if [ "$has_out" = 0 ]; then
-  name="default"
-  if [ ${#scene[@]} -gt 0 ]; then
-    # The name rtc-render gives the scene: a scene JSON's "name" field; else the file's name,
-    # or its folder's for a file named view.json (a scene pack's).
-    # (python3 reads the JSON; without it, or for a file it cannot read, the file's name: rtc-master
-    # reports what is wrong with the file itself.)
-    name=""
-    field=""
-    scene_lower="${scene[0],,}"
-    if [[ "$scene_lower" == *.json ]] && command -v python3 >/dev/null 2>&1; then
-      field="$(python3 -c 'import json, sys
-j = json.load(open(sys.argv[1], encoding="utf-8"))
-n = j.get("name") if isinstance(j, dict) else None
-print("=" + n if isinstance(n, str) else "")' "${scene[0]}" 2>/dev/null || true)"
-    fi
-    if [ -n "$field" ]; then
-      name="${field#=}"
-    else
-      name="$(basename "${scene[0]%.*}")"
-      [ "$name" = "view" ] && name="$(basename "$(cd -- "$(dirname "${scene[0]}")" >/dev/null && pwd)")"
-    fi
-    # As a file name (rtc::file_stem_for): no folder separator, '#' or '%'.
-    name="$(printf '%s' "$name" | LC_ALL=C tr -c 'A-Za-z0-9._+-' '_')"
-    [[ "$name" =~ ^\.*$ ]] && name="scene"
-  fi
   mkdir -p out/cluster
-  master_args+=(--out "out/cluster/${name}_####.png")
+  master_args+=(--out-dir out/cluster)
 fi
 [ "$has_min_workers" = 1 ] || master_args+=(--min-workers "$workers")
 
@@ -124,17 +109,30 @@ cleanup() {
   exit "$status"
 }
 trap cleanup EXIT
-# Ctrl-C reaches the master directly (same process group): it finishes the frames in flight with
-# the workers, which run in their own sessions so the terminal's SIGINT does not stop them first.
-# A SIGTERM to this script alone (kill, a supervisor) is passed on to the master, which then does
-# the same; a second signal to the master would abandon the frames, so SIGINT is not passed on.
+# The master and the workers run in sessions of their own, so a signal to this script's process
+# group (Ctrl-C, `kill %1`, `timeout`, a supervisor) reaches only the script, which passes each
+# SIGINT or SIGTERM on to the master exactly once: the first makes it finish the frames in flight
+# with the workers, a second abandons them. One that comes before the master is started is passed
+# on as soon as it is (before the master has loaded the scene, it simply ends it).
 interrupted=0
-trap 'interrupted=1; echo "launch-local: stopping (the master finishes the frames in flight)" >&2' INT
-trap 'interrupted=1; echo "launch-local: SIGTERM: stopping (the master finishes the frames in flight)" >&2
-      [ -n "$master_pid" ] && kill -TERM "$master_pid" 2>/dev/null || true' TERM
+signals=0
+pending=()
+forward() {
+  interrupted=1
+  signals=$((signals + 1))
+  if [ "$signals" -eq 1 ]; then
+    echo "launch-local: SIG$1: stopping (the master finishes the frames in flight; signal again to abandon them)" >&2
+  else
+    echo "launch-local: SIG$1 again: the master abandons the frames in flight" >&2
+  fi
+  if [ -n "$master_pid" ]; then kill -"$1" "$master_pid" 2>/dev/null || true; else pending+=("$1"); fi
+}
+trap 'forward INT' INT
+trap 'forward TERM' TERM
 
-"$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
+setsid "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
 master_pid=$!
+for sig in "${pending[@]}"; do kill -"$sig" "$master_pid" 2>/dev/null || true; done
 for _ in $(seq 1 600); do
   [ -s "$run_dir/address" ] && break
   kill -0 "$master_pid" 2>/dev/null || { wait "$master_pid"; exit $?; }

@@ -40,8 +40,13 @@ int run(int argc, char** argv) {
       ->check(rtc::kNotNan)
       ->check(CLI::Range(0.001, 1e9))
       ->excludes(frames_opt);
-  app.add_option("--out", o.out_pattern,
-                 "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
+  std::string out_dir;
+  auto* out_opt = app.add_option("--out", o.out_pattern,
+                                 "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
+  app.add_option("--out-dir", out_dir,
+                 "write frames to DIR/<scene>_NNNN.png, <scene> the scene's name as rtc-render names its "
+                 "frames (instead of --out)")
+      ->excludes(out_opt);
   app.add_option("--tile", o.tile_size, "tile size in pixels (default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));
   app.add_option("--wire", wire_text, "pixel format on the wire: rgba8 (sRGB, 4 B/px), half (8 B/px), float (16 B/px); "
@@ -96,6 +101,9 @@ int run(int argc, char** argv) {
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
   o.temporal = rtc::parse_temporal_mode(temporal_text);
+  if (app.count("--out-dir") > 0 && out_dir.empty()) throw rtc::Error("--out-dir: the folder is empty");
+  // The scene's name is known after the load; the file kind (PNG) and the folder are not.
+  if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, "scene");
   // EXR and TIFF store float pixels (write_image); PNG, JPEG and PPM store 8-bit sRGB.
   const std::optional<rtc::ImageFileKind> kind =
       o.out_pattern.empty() ? std::nullopt : rtc::image_file_kind(o.out_pattern);
@@ -143,6 +151,7 @@ int run(int argc, char** argv) {
   if (app.count("--out") > 0 && o.out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
 
   const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
+  if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, scene.name);
   if (scene.width > 32768 || scene.height > 32768) {
     throw rtc::Error("scene " + rtc::scene_label(scene_options) +
                      ": " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +

@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cerrno>
 #include <csignal>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <map>
@@ -120,8 +122,12 @@ class Master {
       tls_ = net::tls_server_context(options_.tls_cert, options_.tls_key);
     }
     if (!options_.stats_json.empty()) {
+      errno = 0;
       stats_file_.open(options_.stats_json, std::ios::out | std::ios::trunc);
-      if (!stats_file_) throw Error("--stats-json: cannot open " + options_.stats_json + " for writing");
+      if (!stats_file_) {
+        throw Error("--stats-json: cannot open " + options_.stats_json + " for writing: " +
+                    (errno != 0 ? std::string(std::strerror(errno)) : std::string("unknown reason")));
+      }
     }
     if (!options_.out_pattern.empty()) {
       writer_ = std::make_unique<FrameWriter>(options_.write_options, [this](const std::string& error) {
@@ -228,14 +234,24 @@ class Master {
                  options_.min_workers == 1 ? "" : "s");
     if (!options_.ready_file.empty()) {
       const std::string tmp = options_.ready_file + ".tmp";
+      std::error_code fs_ec;
       {
+        errno = 0;
         std::ofstream f(tmp, std::ios::trunc);
         f << listening_on_ << '\n';
-        if (!f) throw Error("--ready-file: cannot write " + tmp);
+        f.close();
+        if (!f) {
+          const std::string reason = errno != 0 ? std::string(std::strerror(errno)) : std::string("unknown reason");
+          std::filesystem::remove(tmp, fs_ec);
+          throw Error("--ready-file: cannot write " + options_.ready_file + " (through " + tmp + "): " + reason);
+        }
       }
-      std::error_code fs_ec;
       std::filesystem::rename(tmp, options_.ready_file, fs_ec);
-      if (fs_ec) throw Error("--ready-file: cannot rename " + tmp + ": " + fs_ec.message());
+      if (fs_ec) {
+        const std::string reason = fs_ec.message();
+        std::filesystem::remove(tmp, fs_ec);
+        throw Error("--ready-file: cannot rename " + tmp + " to " + options_.ready_file + ": " + reason);
+      }
     }
   }
 

@@ -22,12 +22,18 @@ namespace {
 // Wide enough for any int frame number (2147483647 has 10 digits).
 constexpr std::size_t kMaxPrintfWidth = 10;
 constexpr std::size_t kInsertedWidth = 4;
+constexpr std::size_t kMaxStemBytes = 200;
 
 std::string zero_padded(int frame, std::size_t width) {
   std::string digits = std::to_string(frame);
   if (digits.size() < width) digits.insert(0, width - digits.size(), '0');
   return digits;
 }
+
+// For errors where a '#' the user meant literally may have been taken for the frame number.
+constexpr const char* kHashHint =
+    "each run of '#' is the frame number, in folder names too; in a pattern with \"%04d\" for it "
+    "every '#' is literal";
 
 [[noreturn]] void bad_pattern(const std::string& pattern, const std::string& reason) {
   throw Error(fmt::format("output pattern '{}': {}", pattern, reason));
@@ -98,8 +104,8 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
     }
   }
   if (placeholders > 1) {
-    bad_pattern(pattern,
-                fmt::format("has {} frame placeholders; a name can hold only one", placeholders));
+    bad_pattern(pattern, fmt::format("has {} frame placeholders; a name can hold only one{}", placeholders,
+                                     printf_style ? std::string() : fmt::format(" ({})", kHashHint)));
   }
   if (placeholders == 0 && multiple_frames) {
     // The extension belongs to the file name only ("v1.2/out" has none); a leading dot is a
@@ -122,12 +128,33 @@ std::string file_stem_for(std::string_view name) {
     if (!keep) c = '_';
     dots_only = dots_only && c == '.';
   }
+  // A name longer than a file name may be (255 bytes, with the frame number and extension).
+  if (out.size() > kMaxStemBytes) out.resize(kMaxStemBytes);
   return dots_only ? std::string("scene") : out;
+}
+
+std::string numbered_frame_pattern(const std::string& folder, std::string_view scene_name) {
+  std::string out;
+  for (const char c : folder) {
+    out += c;
+    if (c == '%') out += '%';
+  }
+  if (!out.empty() && out.back() != '/') out += '/';
+  return out + file_stem_for(scene_name) + "_%04d.png";
 }
 
 std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames) {
   const std::filesystem::path first(expand_frame_pattern(pattern, first_frame, multiple_frames));
-  const auto bad = [&](const std::string& reason) { return Error("--out: " + first.string() + ": " + reason); };
+  // Where '#'s in the pattern's folder became the frame number, the message shows the pattern and
+  // says so (a folder with a '#' in its name is the likely intent).
+  const std::size_t slash = pattern.rfind('/');
+  const bool hashes = slash != std::string::npos && pattern.substr(0, slash).find('#') != std::string::npos &&
+                      first.parent_path().string().find('#') == std::string::npos;
+  const auto bad = [&](const std::string& reason) {
+    return Error("--out: " + first.string() + ": " + reason +
+                 (hashes ? fmt::format(" (the pattern '{}' gives this name for frame {}: {})", pattern, first_frame, kHashHint)
+                         : std::string()));
+  };
   std::error_code ec;
   if (std::filesystem::is_directory(first, ec)) throw bad("is a folder");
   // write_image's own checks, then what only writing finds out.

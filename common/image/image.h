@@ -132,8 +132,13 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
 
 /// `name` (a scene's name) as a file name's stem that is also a frame pattern's literal text:
 /// every character but ASCII letters, digits, '.', '_', '+' and '-' becomes '_' (so no folder
-/// separator, '#' or '%'), and an empty name or one of dots only gives "scene".
+/// separator, '#' or '%'), and an empty name or one of dots only gives "scene"; at most 200 bytes.
 std::string file_stem_for(std::string_view name);
+
+/// The frames of scene `scene_name` in `folder`, numbered: "<folder>/<file_stem_for(name)>_%04d.png"
+/// with any '%' of the folder doubled, so every character of the folder is taken literally
+/// ('#' too: the pattern is printf-style). rtc-master's --out-dir.
+std::string numbered_frame_pattern(const std::string& folder, std::string_view scene_name);
 
 /// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, a first
 /// frame's name that is a folder, output_file_problem's, or a folder this process cannot write

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -201,6 +202,26 @@ fs::path temp_path_for(const fs::path& path) {
   return path.parent_path() / name;
 }
 
+// Creates `path` (which must not exist) holding `bytes`, every write and the close checked.
+// Empty on success, else the reason (ENOSPC: "No space left on device").
+std::string write_file(const fs::path& path, const std::vector<unsigned char>& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd < 0) return std::error_code(errno, std::generic_category()).message();
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int write_errno = n < 0 ? errno : EIO;
+      ::close(fd);
+      return std::error_code(write_errno, std::generic_category()).message();
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) return std::error_code(errno, std::generic_category()).message();
+  return {};
+}
+
 // Empty on success, else the reason.
 std::string flush_to_disk(const fs::path& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -281,9 +302,24 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
   {
     auto out = OIIO::ImageOutput::create(format->oiio_format);
     if (!out) throw fail(OIIO::geterror());
-    if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
-    if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
-    if (!out->close()) throw fail(out->geterror());
+    if (out->supports("ioproxy")) {
+      // Encoded in memory, then written here: some of OpenImageIO's writers do not report a
+      // failed write (PNG wrote an empty file on a full disk and said nothing; libjpeg ended the
+      // process), so the file's own writes are ours, each checked.
+      std::vector<unsigned char> bytes;
+      OIIO::Filesystem::IOVecOutput proxy(bytes);
+      if (!out->set_ioproxy(&proxy)) throw fail(out->geterror());
+      if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
+      if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
+      if (!out->close()) throw fail(out->geterror());
+      if (const std::string problem = write_file(temp.path(), bytes); !problem.empty()) {
+        throw fail(fmt::format("cannot write '{}': {}", temp.path().string(), problem));
+      }
+    } else {
+      if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
+      if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
+      if (!out->close()) throw fail(out->geterror());
+    }
   }
   if (const std::string problem = flush_to_disk(temp.path()); !problem.empty()) {
     throw fail(fmt::format("cannot flush '{}': {}", temp.path().string(), problem));

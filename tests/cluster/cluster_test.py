@@ -1613,7 +1613,8 @@ def _processes_with(text):
 def _run_launcher(c, name, extra, interrupt, scene=None):
     """deploy/launch-local.sh 2 [SCENE] -- EXTRA in its own process group (as from a terminal);
     with `interrupt`, SIGINT to the whole group once the first frame is logged (as Ctrl-C), or
-    with interrupt="term" SIGTERM to the script alone (as `kill`). Returns (rc, log)."""
+    with interrupt="term" SIGTERM to the script alone (as `kill`), with "term-group" to the whole
+    group (as `kill %1` or `timeout`). Returns (rc, log)."""
     script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
     build = os.path.dirname(os.path.dirname(os.path.abspath(c.args.master)))
     log_path = c.path(f"{name}.log")
@@ -1630,6 +1631,8 @@ def _run_launcher(c, name, extra, interrupt, scene=None):
             wait_for(lambda: re.search(r"frame \d+ \[seq", text()) or p.poll() is not None, 60, "the first frame")
             if interrupt == "term":
                 os.kill(p.pid, signal.SIGTERM)
+            elif interrupt == "term-group":
+                os.killpg(p.pid, signal.SIGTERM)
             else:
                 os.killpg(p.pid, signal.SIGINT)
         try:
@@ -1680,15 +1683,21 @@ def case_launch_local(c):
     print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
     # SIGTERM to the script alone is passed on to the master, which finishes the frames in flight
     # as for Ctrl-C (before, the script only printed that it was stopping and waited for the run).
-    out_t = c.mkdir("terminated")
-    rc, log = _run_launcher(c, "launch-term", [*MEDIUM, "--frames", "0-23", "--temporal", "off", "--out",
-                                               os.path.join(out_t, "m_####.png")], "term")
-    if rc != 0 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
-        fail(f"launch-local.sh after SIGTERM: exit {rc}, expected 0 and the master stopping on SIGTERM:\n{log}")
-    written = sorted(f for f in os.listdir(out_t) if f.endswith(".png"))
-    if not 1 <= len(written) < 24:
-        fail(f"expected some but not all 24 frames after SIGTERM, got {len(written)}")
-    print(f"SIGTERM after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+    # A SIGTERM to the whole group (kill %1, timeout) reaches the master once, through the script
+    # (it runs in a session of its own): it finishes the frames in flight, and does not take the
+    # script's copy as a second signal ("again: abandoning the frames in flight").
+    for mode in ("term", "term-group"):
+        out_t = c.mkdir(f"terminated-{mode}")
+        rc, log = _run_launcher(c, f"launch-{mode}", [*MEDIUM, "--frames", "0-47", "--temporal", "off", "--out",
+                                                      os.path.join(out_t, "m_####.png")], mode)
+        if rc != 0 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
+            fail(f"launch-local.sh after SIGTERM ({mode}): exit {rc}, expected 0 and the master stopping on SIGTERM:\n{log}")
+        if "abandon" in log.replace("signal again to abandon", ""):
+            fail(f"launch-local.sh after SIGTERM ({mode}): the master abandoned frames (a second signal):\n{log}")
+        written = sorted(f for f in os.listdir(out_t) if f.endswith(".png"))
+        if not 1 <= len(written) < 48:
+            fail(f"expected some but not all 48 frames after SIGTERM ({mode}), got {len(written)}")
+        print(f"SIGTERM ({mode}) after the first frame: {len(written)} frames written, exit 0, nothing left behind")
     # The master's listening address and ready file are the script's own: refused with a reason
     # before anything starts (the master used to fail on "--listen: At Most 1 required").
     script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
@@ -1714,7 +1723,8 @@ def case_launch_local(c):
         fail("launch-local.sh -- --out=PATH also wrote to out/cluster")
     print("--no-out wrote nothing; --out=PATH and --min-workers=1 were taken as given")
     # Without --out the frames are named by the scene's "name" field, as rtc-render names them,
-    # with the characters a file name cannot take ('/', '#', '%', spaces) as '_'.
+    # with the characters a file name cannot take ('/', '#', '%', spaces) as '_' (rtc-master
+    # --out-dir out/cluster).
     scene = c.path("named.json")
     cube = os.path.join(TEMPORAL_SCENES, "cube.obj")
     with open(scene, "w", encoding="utf-8") as f:

@@ -87,9 +87,10 @@ if (problems.length === 0) {
         // defaultMode's bits (0644 unless given): the non-root user reads them through "other",
         // or through the group when fsGroup makes it one of the user's groups.
         const mode = v.secret.defaultMode === undefined ? 0o644 : Number(v.secret.defaultMode);
-        const readable = (mode & 0o004) !== 0 || ((mode & 0o040) !== 0 && pod.securityContext.fsGroup !== undefined);
-        check(readable, `${d.metadata.name}: user ${pod.securityContext.runAsUser} can read Secret ` +
-              `${v.secret.secretName}'s files (mode 0${mode.toString(8)}, fsGroup ${pod.securityContext.fsGroup})`);
+        const sc = pod.securityContext || {};
+        const readable = (mode & 0o004) !== 0 || ((mode & 0o040) !== 0 && sc.fsGroup !== undefined);
+        check(readable, `${d.metadata.name}: user ${sc.runAsUser} can read Secret ` +
+              `${v.secret.secretName}'s files (mode 0${mode.toString(8)}, fsGroup ${sc.fsGroup})`);
       }
       if (v.persistentVolumeClaim) {
         check(find('PersistentVolumeClaim', v.persistentVolumeClaim.claimName),

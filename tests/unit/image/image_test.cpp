@@ -2,7 +2,10 @@
 #include "common/image/image.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <algorithm>
 #include <bit>
@@ -373,6 +376,41 @@ TEST_F(WriteImage, ConcurrentWritesLeaveOnlyWholeFinalFiles) {
   EXPECT_EQ(image_hash(read_image(dir_ / "shared.exr")), image_hash(image));
 }
 
+// A write that runs out of room (here the file size limit, EFBIG; on a full disk ENOSPC) is an
+// error naming the file and the reason, in every format, and leaves no file, whole or partial.
+// OpenImageIO's PNG writer used to report success with an empty file, and libjpeg ended the
+// process.
+TEST_F(WriteImage, AFailedWriteIsAnErrorAndLeavesNoFile) {
+  Image image = make_test_image(128, 128, true, true);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (float& v : image.rgba) v = u(rng);  // noise: no format compresses it below the limit
+  struct sigaction ignore {}, saved {};
+  ignore.sa_handler = SIG_IGN;
+  ASSERT_EQ(::sigaction(SIGXFSZ, &ignore, &saved), 0);
+  rlimit limit{}, saved_limit{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved_limit), 0);
+  limit = saved_limit;
+  limit.rlim_cur = 4096;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limit), 0);
+  std::vector<std::string> errors;
+  for (const char* name : {"f.png", "f.jpg", "f.exr", "f.tif", "f.ppm"}) {
+    try {
+      write_image(dir_ / name, image);
+      errors.push_back(std::string(name) + ": no error");
+    } catch (const Error& error) {
+      errors.push_back(error.what());
+    }
+  }
+  ::setrlimit(RLIMIT_FSIZE, &saved_limit);
+  ::sigaction(SIGXFSZ, &saved, nullptr);
+  for (const std::string& e : errors) {
+    EXPECT_NE(e.find("cannot write image '" + dir_.string()), std::string::npos) << e;
+    EXPECT_NE(e.find("File too large"), std::string::npos) << e;
+  }
+  EXPECT_EQ(names_in(dir_), std::set<std::string>{});
+}
+
 TEST_F(WriteImage, FailedRenameLeavesNoTemporaryFile) {
   // The final name is taken by a folder, so the rename at the end fails.
   fs::create_directory(dir_ / "frame.exr");
@@ -568,6 +606,14 @@ TEST(FramePattern, FileStemForKeepsOnlyPlainCharacters) {
   EXPECT_EQ(file_stem_for("/"), "_");
   // Whatever the name, the default pattern built on it expands to that stem and the number.
   EXPECT_EQ(expand_frame_pattern("out/" + file_stem_for("a#b%d/c") + "_####.png", 5, true), "out/a_b_d_c_0005.png");
+  EXPECT_EQ(file_stem_for(std::string(300, 'x')), std::string(200, 'x'));  // a file name has 255 bytes at most
+}
+
+// rtc-master --out-dir: every character of the folder literal, the scene's name as a stem.
+TEST(FramePattern, NumberedFramePatternTakesTheFolderLiterally) {
+  EXPECT_EQ(expand_frame_pattern(numbered_frame_pattern("out/cluster", "spd-tree"), 7, true), "out/cluster/spd-tree_0007.png");
+  EXPECT_EQ(expand_frame_pattern(numbered_frame_pattern("take#2/100%/", "a b"), 12, false), "take#2/100%/a_b_0012.png");
+  EXPECT_EQ(expand_frame_pattern(numbered_frame_pattern("/", ""), 0, true), "/scene_0000.png");
 }
 
 TEST(FramePattern, BadPatternsThrowNamingThePattern) {
@@ -625,6 +671,16 @@ TEST_F(OutputPattern, CheckedBeforeRendering) {
   EXPECT_EQ(error_of(d + "/plain/f.png", false), "--out: " + d + "/plain/f.png: '" + d + "/plain' is not a folder");
   // The pattern's own errors come through.
   EXPECT_NE(error_of(d + "/f_##_##.exr", true).find("frame placeholders"), std::string::npos);
+  // A '#' meant literally, in a folder name: the messages show the pattern and the way out.
+  const std::string hint =
+      "each run of '#' is the frame number, in folder names too; in a pattern with \"%04d\" for it every '#' is literal";
+  EXPECT_EQ(error_of(d + "/take#2/f.png", false), "--out: " + d + "/take32/f.png: folder '" + d +
+                                                     "/take32' does not exist (the pattern '" + d +
+                                                     "/take#2/f.png' gives this name for frame 3: " + hint + ")");
+  EXPECT_EQ(error_of(d + "/take#2/f_####.png", true),
+            "output pattern '" + d + "/take#2/f_####.png': has 2 frame placeholders; a name can hold only one (" + hint + ")");
+  fs::create_directories(dir_ / "take#2");
+  EXPECT_EQ(error_of(d + "/take#2/f_%04d.png", true), "");
 }
 
 // ---- Image, blit, hash -----------------------------------------------------------------------

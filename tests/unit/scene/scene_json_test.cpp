@@ -237,11 +237,12 @@ TEST(SceneJson, NameDefaultsToTheFileOrAViewJsonsFolder) {
   EXPECT_EQ(load_scene(dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj", "name": "lab"})")).name, "lab");
   // A relative path to view.json in the current folder still finds the folder's name.
   (void)dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj"})");
-  const auto cwd = std::filesystem::current_path();
+  struct RestoreCwd {
+    std::filesystem::path cwd = std::filesystem::current_path();
+    ~RestoreCwd() { std::filesystem::current_path(cwd); }
+  } restore;
   std::filesystem::current_path(dir.path() / "pack" / "spd-lab");
-  const std::string name = load_scene("view.json").name;
-  std::filesystem::current_path(cwd);
-  EXPECT_EQ(name, "spd-lab");
+  EXPECT_EQ(load_scene("view.json").name, "spd-lab");
 }
 
 TEST(SceneJson, TriangleCountMismatchIsOnlyAWarning) {
