@@ -20,6 +20,7 @@
 #include "master/frame_writer.h"
 #include "master/master_server.h"
 #include "protocol/auth.h"
+#include "protocol/net/connection.h"
 #include "protocol/message.h"
 
 namespace {
@@ -101,6 +102,8 @@ int run(int argc, char** argv) {
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
   o.temporal = rtc::parse_temporal_mode(temporal_text);
+  (void)rtc::net::parse_host_port(o.listen, "--listen");
+  if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
   if (app.count("--out-dir") > 0 && out_dir.empty()) throw rtc::Error("--out-dir: the folder is empty");
   // The scene's name is known after the load; the file kind (PNG) and the folder are not.
   if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, "scene");

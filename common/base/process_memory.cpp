@@ -1,6 +1,8 @@
 // keep_freed_memory: glibc malloc thresholds that keep freed memory in the process.
 #include "common/base/process_memory.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
@@ -143,13 +145,22 @@ std::optional<std::uint64_t> available_memory_bytes() {
   if (const std::optional<std::uint64_t> cgroup = cgroup_memory_left()) {
     available = available ? std::min(*available, *cgroup) : *cgroup;
   }
+  // An address-space limit (ulimit -v) leaves this process what it has not mapped yet.
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    const std::optional<std::uint64_t> mapped_kb = read_stat("/proc/self/status", "VmSize:");
+    const std::uint64_t mapped = mapped_kb ? *mapped_kb * 1024 : 0;
+    const std::uint64_t cap = static_cast<std::uint64_t>(limit.rlim_cur);
+    const std::uint64_t left = cap > mapped ? cap - mapped : 0;
+    available = available ? std::min(*available, left) : left;
+  }
   return available;
 }
 
 void check_memory(const std::string& what, std::uint64_t need, const std::string& hint) {
   const std::optional<std::uint64_t> available = available_memory_bytes();
   if (!available || need <= *available) return;
-  throw Error(fmt::format("{} needs at least {:.1f} GB of memory and this machine has {:.1f} GB available: {}", what,
+  throw Error(fmt::format("{} needs at least {:.1f} GB of memory and {:.1f} GB are available to this process: {}", what,
                           need / 1e9, *available / 1e9, hint));
 }
 

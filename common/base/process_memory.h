@@ -44,11 +44,12 @@ void log_freed_memory_policy(const FreedMemoryPolicy& policy);
 std::string freed_memory_veto(const char* (*env)(const char* name));
 
 /// The memory a new allocation can get without swapping: MemAvailable in /proc/meminfo, or less
-/// where a memory cgroup (a container's limit) leaves less; nullopt where neither can be read.
+/// where a memory cgroup (a container's limit) or an address-space limit (ulimit -v, less what
+/// the process has mapped) leaves less; nullopt where none can be read.
 std::optional<std::uint64_t> available_memory_bytes();
 
-/// Throws rtc::Error ("<what> needs at least X GB of memory and this machine has Y GB available:
-/// <hint>") when `need` bytes exceed available_memory_bytes(), so that a frame far too big for
+/// Throws rtc::Error ("<what> needs at least X GB of memory and Y GB are available to this
+/// process: <hint>") when `need` bytes exceed available_memory_bytes(), so that a frame far too big for
 /// the machine is refused up front instead of the process being killed for memory halfway;
 /// does nothing where the available memory is unknown.
 void check_memory(const std::string& what, std::uint64_t need, const std::string& hint);

@@ -143,6 +143,8 @@ class Reader {
     } else if (j.is_number_float() && std::isfinite(j.get<double>()) &&
                std::floor(j.get<double>()) == j.get<double>() && std::abs(j.get<double>()) < 9e15) {
       v = static_cast<std::int64_t>(j.get<double>());  // 512.0 is accepted as 512
+    } else if (j.is_number()) {
+      fail(path, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + j.dump());
     } else {
       fail(path, "expected an integer, got " + type_name(j));
     }
@@ -301,10 +303,13 @@ void sort_keys(const Reader& r, std::vector<Key>& keys, const std::string& path)
 /// such as frame_%04d.png has no way to write a negative one.
 int frame_number(const Reader& r, const Json& j, const std::string& path) {
   const std::int64_t frame =
-      r.integer(j, path, std::numeric_limits<std::int64_t>::min(), kMaxFrame);
+      r.integer(j, path, std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::max());
   if (frame < 0) {
     r.fail(path, "frame " + std::to_string(frame) +
                      " is negative (output file names number frames from 0)");
+  }
+  if (frame > kMaxFrame) {
+    r.fail(path, "frame " + std::to_string(frame) + " is past the last a scene may have, " + std::to_string(kMaxFrame));
   }
   return static_cast<int>(frame);
 }

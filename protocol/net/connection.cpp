@@ -18,6 +18,9 @@ std::string peer_name(const asio::ip::tcp::socket& socket) {
 }
 
 HostPort parse_host_port(const std::string& text, const std::string& what) {
+  if (text.find("://") != std::string::npos || text.find('/') != std::string::npos) {
+    throw Error(what + ": expected HOST:PORT (no scheme or path, e.g. 127.0.0.1:7878), got \"" + text + "\"");
+  }
   const std::size_t colon = text.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == text.size()) {
     throw Error(what + ": expected HOST:PORT, got \"" + text + "\"");

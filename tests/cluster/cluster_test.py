@@ -1548,6 +1548,10 @@ def case_master_cli_errors(c):
         (["--frames", "5-2"], r"--frames: 5-2 is an empty range"),
         (["--token-file", c.path("no-such-token")], r"no-such-token"),
         (["--listen", "127.0.0.1:99999"], r"bad port"),
+        (["--listen", "http://127.0.0.1:7878"], r"--listen: expected HOST:PORT \(no scheme or path"),
+        (["--tls-cert", degenerate], r"--tls-cert and --tls-key go together"),
+        (["--out-dir", ""], r"--out-dir: the folder is empty"),
+        (["--out-dir", c.path("missing")], r"--out: .*missing/.*_0000\.png: folder .* does not exist"),
         ([c.path("no-such-scene.json")], r"no-such-scene.json"),
         (["--out", c.path("x_####.xyz")], r"--out: .*x_0000\.xyz: unsupported extension '\.xyz'"),
         (["--out", ""], r"--out: the pattern is empty"),
@@ -1586,7 +1590,7 @@ def _master_memory_counts_the_writer_queue(c):
             "--out", c.path("big_####.exr"), "--listen", "127.0.0.1:0", "--ready-file", ready]
     p = c.spawn("master-memory", [c.args.master, *args])
     rc = p.wait(30, "fail on a frame too big for the writer queue")
-    pattern = rf"4 frames of {width}x{height} held at once needs at least .* GB available: use a smaller"
+    pattern = rf"4 frames of {width}x{height} held at once needs at least .* GB are available to this process: use a smaller"
     if rc != 1 or not re.search(pattern, p.log()):
         fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1 and /{pattern}/ in:\n{p.log()}")
     if os.path.exists(ready):

@@ -4,8 +4,12 @@
 #include <sys/resource.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
+#include <exception>
+#include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "common/base/process_memory.h"
@@ -79,3 +83,43 @@ TEST(ProcessMemory, FreedBlockIsReusedWithoutFaults) {
 
 }  // namespace
 }  // namespace rtc
+
+// An address-space limit (ulimit -v) counts: what the process has not mapped yet of it is all a
+// new frame can get, whatever the machine has free. check_memory then refuses with the figures.
+TEST(ProcessMemory, AddressSpaceLimitBoundsTheAvailableMemory) {
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_AS, &saved), 0);
+  const std::optional<std::uint64_t> before = rtc::available_memory_bytes();
+  ASSERT_TRUE(before.has_value());
+  std::uint64_t mapped_kb = 0;
+  {
+    std::ifstream status("/proc/self/status");
+    std::string key;
+    while (status >> key) {
+      if (key == "VmSize:") {
+        status >> mapped_kb;
+        break;
+      }
+    }
+  }
+  ASSERT_GT(mapped_kb, 0u);
+  const std::uint64_t headroom = 256ull << 20;  // 256 MiB beyond what is mapped now
+  rlimit limit = saved;
+  limit.rlim_cur = mapped_kb * 1024 + headroom;
+  if (saved.rlim_cur != RLIM_INFINITY && saved.rlim_cur < limit.rlim_cur) GTEST_SKIP() << "a tighter limit is set already";
+  ASSERT_EQ(::setrlimit(RLIMIT_AS, &limit), 0);
+  const std::optional<std::uint64_t> limited = rtc::available_memory_bytes();
+  std::string error;
+  try {
+    rtc::check_memory("a test frame", 1ull << 30, "use a smaller one");
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  ::setrlimit(RLIMIT_AS, &saved);
+  ASSERT_TRUE(limited.has_value());
+  EXPECT_LE(*limited, headroom);
+  EXPECT_GE(*limited, headroom / 2);  // the reads above mapped a little, not half of it
+  // 0.1-0.3 GB: the 256 MiB less what the process mapped meanwhile.
+  EXPECT_TRUE(error.starts_with("a test frame needs at least 1.1 GB of memory and 0.")) << error;
+  EXPECT_TRUE(error.ends_with(" GB are available to this process: use a smaller one")) << error;
+}

@@ -311,7 +311,10 @@ TEST(SceneJson, NegativeFramesAreRejected) {
            R"({"mesh": "tri.obj", "animation": {"frames": [0, 5], "lights": [{"light": 0, "keys": [{"frame": -7, "position": [0, 0, 0]}]}]}})"),
               HasSubstr("\"animation.lights[0].keys[0].frame\": frame -7 is negative"));
   EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "animation": {"frames": [0, 1000000001]}})"),
-              HasSubstr("\"animation.frames[1]\": must be in"));
+              HasSubstr("\"animation.frames[1]\": frame 1000000001 is past the last a scene may have, 1000000000"));
+  // A number too large for an integer says so with its value (it said "got number").
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "resolution": [1e30, 10]})"),
+              HasSubstr("\"resolution[0]\": expected an integer in [1, 65536], got 1e+30"));
 }
 
 TEST(SceneJson, TransformsBeyondTheFloatRangeAreRejected) {
