@@ -167,6 +167,12 @@ int run(int argc, char** argv) {
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
   rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
+  // Each frame is held whole: RGBA float, and depth and normals unless both are left out. Checked
+  // before the default output folder is made, so a refused run leaves nothing behind.
+  const bool aovs = !(no_depth && no_normal);
+  rtc::check_memory("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
+                    rtc::Image::bytes(scene.width, scene.height, aovs, aovs),
+                    aovs ? "use a smaller --width/--height, or --no-depth --no-normal" : "use a smaller --width/--height");
   if (out_pattern.empty()) {
     out_pattern = "out/" + rtc::file_stem_for(scene.name) + (multiple ? "_####.png" : ".png");
     std::filesystem::create_directories("out");
@@ -185,12 +191,7 @@ int run(int argc, char** argv) {
   options.isa = isa;
   options.packets = !single_rays;
   options.kd_clip = rtc::parse_kd_clip(kd_clip);
-  options.aovs = !(no_depth && no_normal);
-  // Each frame is held whole: RGBA float, and depth and normals unless both are left out.
-  rtc::check_memory("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
-                    rtc::Image::bytes(scene.width, scene.height, options.aovs, options.aovs),
-                    options.aovs ? "use a smaller --width/--height, or --no-depth --no-normal"
-                                 : "use a smaller --width/--height");
+  options.aovs = aovs;
   options.specialise = !no_specialise;
   options.skip_empty = !no_skip_empty;
   options.instance_moving_meshes = !rebuild_moving;

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include <asio.hpp>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
@@ -373,7 +374,7 @@ class WorkerClient {
     }
     if (!retry_logged_ && !connected) {
       spdlog::info("master at {} not reachable ({}); retrying with back-off{}", options_.connect, why,
-                   options_.retry_seconds > 0 ? " for up to " + std::to_string(static_cast<int>(options_.retry_seconds)) + " s" : "");
+                   options_.retry_seconds > 0 ? fmt::format(" for up to {:g} s", options_.retry_seconds) : std::string());
       retry_logged_ = true;
     } else {
       spdlog::debug("master at {} not reachable ({}); next try in {} ms", options_.connect, why, backoff_ms_);
