@@ -36,6 +36,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 namespace proto = protocol;
 
+// The reason a file operation that sets errno failed; set errno to 0 before it (iostreams need
+// not set it at all).
+std::string errno_reason() { return errno != 0 ? std::string(std::strerror(errno)) : std::string("unknown reason"); }
+
 double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
@@ -126,7 +130,7 @@ class Master {
       stats_file_.open(options_.stats_json, std::ios::out | std::ios::trunc);
       if (!stats_file_) {
         throw Error("--stats-json: cannot open " + options_.stats_json + " for writing: " +
-                    (errno != 0 ? std::string(std::strerror(errno)) : std::string("unknown reason")));
+                    errno_reason());
       }
     }
     if (!options_.out_pattern.empty()) {
@@ -241,7 +245,7 @@ class Master {
         f << listening_on_ << '\n';
         f.close();
         if (!f) {
-          const std::string reason = errno != 0 ? std::string(std::strerror(errno)) : std::string("unknown reason");
+          const std::string reason = errno_reason();
           std::filesystem::remove(tmp, fs_ec);
           throw Error("--ready-file: cannot write " + options_.ready_file + " (through " + tmp + "): " + reason);
         }

@@ -202,8 +202,9 @@ fs::path temp_path_for(const fs::path& path) {
   return path.parent_path() / name;
 }
 
-// Creates `path` (which must not exist) holding `bytes`, every write and the close checked.
-// Empty on success, else the reason (ENOSPC: "No space left on device").
+// Creates `path` (which must not exist) holding `bytes`, on disk (fsync), every write, the
+// fsync and the close checked. Empty on success, else the reason (ENOSPC: "No space left on
+// device").
 std::string write_file(const fs::path& path, const std::vector<unsigned char>& bytes) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) return std::error_code(errno, std::generic_category()).message();
@@ -217,6 +218,11 @@ std::string write_file(const fs::path& path, const std::vector<unsigned char>& b
       return std::error_code(write_errno, std::generic_category()).message();
     }
     done += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    const int fsync_errno = errno;
+    ::close(fd);
+    return std::error_code(fsync_errno, std::generic_category()).message();
   }
   if (::close(fd) != 0) return std::error_code(errno, std::generic_category()).message();
   return {};
@@ -300,29 +306,26 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
 
   TempFile temp(temp_path_for(path));
   {
+    // Encoded in memory where the format allows, then written here: some of OpenImageIO's writers
+    // do not report a failed write (PNG wrote an empty file on a full disk and said nothing;
+    // libjpeg ended the process), so the file's own writes are ours, each checked. The proxy
+    // outlives the writer.
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput proxy(bytes);
     auto out = OIIO::ImageOutput::create(format->oiio_format);
     if (!out) throw fail(OIIO::geterror());
-    if (out->supports("ioproxy")) {
-      // Encoded in memory, then written here: some of OpenImageIO's writers do not report a
-      // failed write (PNG wrote an empty file on a full disk and said nothing; libjpeg ended the
-      // process), so the file's own writes are ours, each checked.
-      std::vector<unsigned char> bytes;
-      OIIO::Filesystem::IOVecOutput proxy(bytes);
-      if (!out->set_ioproxy(&proxy)) throw fail(out->geterror());
-      if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
-      if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
-      if (!out->close()) throw fail(out->geterror());
+    const bool in_memory = out->supports("ioproxy");
+    if (in_memory && !out->set_ioproxy(&proxy)) throw fail(out->geterror());
+    if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
+    if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
+    if (!out->close()) throw fail(out->geterror());
+    if (in_memory) {
       if (const std::string problem = write_file(temp.path(), bytes); !problem.empty()) {
         throw fail(fmt::format("cannot write '{}': {}", temp.path().string(), problem));
       }
-    } else {
-      if (!out->open(temp.path().string(), encoded.spec)) throw fail(out->geterror());
-      if (!out->write_image(encoded.buffer_type, encoded.data())) throw fail(out->geterror());
-      if (!out->close()) throw fail(out->geterror());
+    } else if (const std::string problem = flush_to_disk(temp.path()); !problem.empty()) {
+      throw fail(fmt::format("cannot flush '{}': {}", temp.path().string(), problem));
     }
-  }
-  if (const std::string problem = flush_to_disk(temp.path()); !problem.empty()) {
-    throw fail(fmt::format("cannot flush '{}': {}", temp.path().string(), problem));
   }
   std::error_code ec;
   fs::rename(temp.path(), path, ec);

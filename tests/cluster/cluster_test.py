@@ -1614,19 +1614,24 @@ def _processes_with(text):
     return found
 
 
+LAUNCHER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
+
+
+def _launcher_env(c):
+    """deploy/launch-local.sh's environment: the binaries under test, temporary files in the case's folder."""
+    return dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
+
+
 def _run_launcher(c, name, extra, interrupt, scene=None):
     """deploy/launch-local.sh 2 [SCENE] -- EXTRA in its own process group (as from a terminal);
     with `interrupt`, SIGINT to the whole group once the first frame is logged (as Ctrl-C), or
     with interrupt="term" SIGTERM to the script alone (as `kill`), with "term-group" to the whole
     group (as `kill %1` or `timeout`). Returns (rc, log)."""
-    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
-    build = os.path.dirname(os.path.dirname(os.path.abspath(c.args.master)))
     log_path = c.path(f"{name}.log")
-    env = dict(os.environ, RTC_BUILD_DIR=build, TMPDIR=c.tmp)
     with open(log_path, "wb") as log:
-        p = subprocess.Popen(["bash", script, "2", *([scene] if scene else []), "--", *extra],
+        p = subprocess.Popen(["bash", LAUNCHER, "2", *([scene] if scene else []), "--", *extra],
                              stdin=subprocess.DEVNULL, stdout=log,
-                             stderr=subprocess.STDOUT, cwd=c.tmp, env=env, start_new_session=True)
+                             stderr=subprocess.STDOUT, cwd=c.tmp, env=_launcher_env(c), start_new_session=True)
     def text():
         with open(log_path, encoding="utf-8", errors="replace") as f:
             return f.read()
@@ -1704,10 +1709,8 @@ def case_launch_local(c):
         print(f"SIGTERM ({mode}) after the first frame: {len(written)} frames written, exit 0, nothing left behind")
     # The master's listening address and ready file are the script's own: refused with a reason
     # before anything starts (the master used to fail on "--listen: At Most 1 required").
-    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "deploy", "launch-local.sh")
-    env = dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
     for arg in ("--listen", "--ready-file=x"):
-        r = subprocess.run(["bash", script, "2", "--", *SMALL, arg, "127.0.0.1:0"], cwd=c.tmp, env=env,
+        r = subprocess.run(["bash", LAUNCHER, "2", "--", *SMALL, arg, "127.0.0.1:0"], cwd=c.tmp, env=_launcher_env(c),
                            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
         if r.returncode != 2 or f"launch-local: {arg} is this script's own" not in r.stderr or "master on" in r.stdout:
             fail(f"launch-local.sh -- {arg}: exit {r.returncode}, expected 2 with a reason:\n{r.stdout}{r.stderr}")
