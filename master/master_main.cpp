@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -58,11 +59,11 @@ int run(int argc, char** argv) {
                                             "Ethernet leaves for messages (default: measured on the first worker's connection)")
       ->check(rtc::kNotNan)
       ->check(CLI::Range(0.001, 1e9));
-  app.add_option("--token-file", token_file, "file holding the shared token workers must prove (HMAC, never sent)");
+  app.add_option("--token-file", token_file, "file holding the shared token workers must prove (HMAC, never sent)")->check(rtc::kNotEmpty);
   app.add_option("--tls-cert", o.tls_cert, "PEM certificate chain: every connection uses TLS (workers need --tls-ca)")
       ->check(CLI::ExistingFile);
   app.add_option("--tls-key", o.tls_key, "PEM private key of --tls-cert")->check(CLI::ExistingFile);
-  app.add_option("--stats-json", o.stats_json, "write per-frame figures and a summary as JSON lines to this file");
+  app.add_option("--stats-json", o.stats_json, "write per-frame figures and a summary as JSON lines to this file")->check(rtc::kNotEmpty);
   app.add_option("--min-workers", o.min_workers, "start rendering once this many workers are ready")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
@@ -88,13 +89,13 @@ int run(int argc, char** argv) {
   app.add_option("--drain-seconds", o.drain_seconds, "after SIGINT/SIGTERM, time to finish the frames in flight")
       ->check(CLI::Range(0, 3600))
       ->capture_default_str();
-  app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening");
+  app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening")->check(rtc::kNotEmpty);
   rtc::add_temporal_options(app, temporal_text, o.mark_cells);
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-master")) return *status;
   rtc::init_logging(log_level);
 
   // Options are checked before the (possibly long) scene load.
@@ -146,7 +147,12 @@ int run(int argc, char** argv) {
                      " tile of that size (with its EXR channels) exceeds the " +
                      std::to_string(rtc::protocol::kMaxPayload >> 20) + " MiB message limit; use a smaller --tile");
   }
-  if (!token_file.empty()) o.token = rtc::protocol::read_token_file(token_file);
+  if (!token_file.empty()) {
+    o.token = rtc::protocol::read_token_file(token_file);
+    if (const std::string warning = rtc::protocol::weak_token_warning(o.token, token_file); !warning.empty()) {
+      spdlog::warn("{}", warning);
+    }
+  }
   // Three heartbeats fit in the timeout, so one late answer does not drop a worker.
   o.heartbeat_ms = std::min(o.heartbeat_ms, o.heartbeat_timeout_ms / 3);
   std::optional<rtc::FrameRange> requested;
@@ -162,6 +168,9 @@ int run(int argc, char** argv) {
   }
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
+  if (const std::string note = rtc::frames_outside_animation_note(scene, frames.first, frames.last); !note.empty()) {
+    spdlog::warn("scene {}: {}", rtc::scene_label(scene_options), note);
+  }
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;

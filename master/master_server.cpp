@@ -154,6 +154,10 @@ class Master {
     }
   }
 
+  Master(const Master&) = delete;
+  Master& operator=(const Master&) = delete;
+  ~Master() { remove_ready_file(); }  // a run that ended by an exception
+
   int run() {
     listen();
     accept();
@@ -256,7 +260,18 @@ class Master {
         std::filesystem::remove(tmp, fs_ec);
         throw Error("--ready-file: cannot rename " + tmp + " to " + options_.ready_file + ": " + reason);
       }
+      ready_file_written_ = true;
     }
+  }
+
+  /// The ready file says "listening on HOST:PORT": it goes when the master stops listening, so a
+  /// script never finds a finished master's address (or the last run's) and waits on it.
+  void remove_ready_file() noexcept {
+    if (!ready_file_written_) return;
+    ready_file_written_ = false;
+    std::error_code ec;
+    std::filesystem::remove(options_.ready_file, ec);
+    if (ec) spdlog::warn("--ready-file: cannot remove {}: {}", options_.ready_file, ec.message());
   }
 
   void accept() {
@@ -1007,6 +1022,7 @@ class Master {
     spdlog::info("shutting down: {}", reason);
     asio::error_code ec;
     acceptor_.close(ec);
+    remove_ready_file();
     signals_.cancel(ec);
     signals_.clear(ec);  // a further Ctrl-C during the goodbyes ends the process the usual way
     tick_.cancel();
@@ -1074,6 +1090,7 @@ class Master {
   bool probe_running_ = false;
   bool stopping_ = false;
   bool done_ = false;
+  bool ready_file_written_ = false;  // by listen(), to be removed when the master stops listening
   std::string fatal_error_;
   /// Render or scene errors reported by workers since the last tile accepted, and which workers
   /// (worker_identity) reported them (fatal at kWorkerFailuresToGiveUp with no other worker

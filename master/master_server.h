@@ -35,7 +35,7 @@ struct MasterOptions {
   bool multiple_frames = false;  ///< for expand_frame_pattern
   ImageWriteOptions write_options;
   std::string stats_json;   ///< JSON lines file, empty: none
-  std::string ready_file;   ///< gets "HOST:PORT\n" once listening (for scripts with port 0)
+  std::string ready_file;   ///< gets "HOST:PORT\n" once listening (for scripts with port 0); removed when listening stops
   int heartbeat_ms = 1000;           ///< at most heartbeat_timeout_ms / 3 (the master lowers it)
   int heartbeat_timeout_ms = 10000;  ///< silence after which a worker is dropped
   int auth_timeout_ms = 10000;       ///< time a new connection has to authenticate

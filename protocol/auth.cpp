@@ -105,4 +105,12 @@ std::string read_token_file(const std::filesystem::path& path) {
   return token;
 }
 
+std::string weak_token_warning(const std::string& token, const std::string& path) {
+  if (token.size() >= kMinStrongToken) return {};
+  return "--token-file " + path + ": the token is " + std::to_string(token.size()) + " byte" +
+         (token.size() == 1 ? "" : "s") + "; anyone who records one handshake can guess a short token offline. Use " +
+         std::to_string(kMinStrongToken) + " or more random bytes, e.g. head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \\n' > " +
+         path;
+}
+
 }  // namespace rtc::protocol

@@ -28,4 +28,11 @@ namespace rtc::protocol {
 /// 4096 bytes, or one containing a NUL byte.
 [[nodiscard]] std::string read_token_file(const std::filesystem::path& path);
 
+/// Tokens shorter than this many bytes are weak: anyone who records one handshake (the nonce
+/// and the proof, in clear without TLS) can try guesses offline at HMAC speed.
+inline constexpr std::size_t kMinStrongToken = 16;
+/// A warning for a token from `path` shorter than kMinStrongToken bytes ("" for a longer one):
+/// the programs log it and go on, since a short token still keeps out a peer that lacks it.
+[[nodiscard]] std::string weak_token_warning(const std::string& token, const std::string& path);
+
 }  // namespace rtc::protocol

@@ -17,6 +17,7 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include "common/base/cli_checks.h"
 #include "common/base/error.h"
 #include "common/base/frame_range.h"
 #include "common/base/isa.h"
@@ -125,7 +126,7 @@ int run(int argc, char** argv) {
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel; default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));
-  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support")->check(rtc::kNotEmpty);
   rtc::add_kd_clip_option(app, kd_clip);
   rtc::add_temporal_options(app, temporal_text, mark_cells);
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
@@ -140,7 +141,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-render")) return *status;
 
   rtc::init_logging(log_level);
   rtc::log_freed_memory_policy(freed_memory);
@@ -167,6 +168,9 @@ int run(int argc, char** argv) {
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
   rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
+  if (const std::string note = rtc::frames_outside_animation_note(scene, frames.first, frames.last); !note.empty()) {
+    spdlog::warn("scene {}: {}", rtc::scene_label(scene_options), note);
+  }
   // Each frame is held whole: RGBA float, and depth and normals unless both are left out. Checked
   // before the default output folder is made, so a refused run leaves nothing behind.
   const bool aovs = !(no_depth && no_normal);

@@ -329,6 +329,11 @@ class WorkerClient {
  private:
   // ---- connecting --------------------------------------------------------------------------
 
+  // An rtc-master sends its challenge as soon as a plain connection opens; one that listens with
+  // TLS waits for a TLS handshake instead, and closes the connection after 10 s without one.
+  static constexpr const char* kTlsHint =
+      "an rtc-master speaks first unless it uses TLS (its log says \"TLS\"): then give this worker --tls-ca";
+
   void connect() {
     if (finished_) return;
     auto socket = std::make_shared<asio::ip::tcp::socket>(io_);
@@ -367,7 +372,7 @@ class WorkerClient {
     if (finished_) return;
     const double down_s = std::chrono::duration<double>(Clock::now() - lost_since_).count();
     if (options_.retry_seconds > 0 && down_s >= options_.retry_seconds) {
-      spdlog::error("master at {} unreachable for {:.0f} s (last: {}); giving up (--retry-seconds {})", options_.connect,
+      spdlog::error("master at {} unreachable for {:.1f} s (last: {}); giving up (--retry-seconds {})", options_.connect,
                     down_s, why, options_.retry_seconds);
       exit_code_ = 1;
       return finish(false);
@@ -445,10 +450,13 @@ class WorkerClient {
     scene_buffer_.clear();
     receiving_scene_ = false;
     last_heard_ = Clock::now();
+    connected_at_ = last_heard_;
+    heard_ = false;
     const std::uint64_t session = session_;
     conn_->start([this, session](proto::Message&& m, std::size_t) {
                    if (session != session_) return;
                    last_heard_ = Clock::now();
+                   heard_ = true;
                    current_type_ = proto::type_name(static_cast<std::uint16_t>(proto::type_of(m)));
                    std::visit([&](auto&& msg) { handle(std::move(msg)); }, std::move(m));
                  },
@@ -479,7 +487,8 @@ class WorkerClient {
       retry_logged_ = false;
     } else {
       // Reached, but the handshake failed (a bad message, a non-rtc server): say why every time.
-      spdlog::warn("connection to {} failed before the master welcomed this worker: {}", options_.connect, reason);
+      spdlog::warn("connection to {} failed before the master welcomed this worker: {}{}", options_.connect, reason,
+                   !heard_ && !tls_ ? std::string(" without a word from it; ") + kTlsHint : std::string());
     }
     retry(reason, /*connected=*/true);
   }
@@ -489,6 +498,10 @@ class WorkerClient {
     watchdog_.expires_after(std::chrono::seconds(1));
     watchdog_.async_wait([this](const asio::error_code& ec) {
       if (ec || !conn_) return;
+      if (!heard_ && !tls_ && !silence_noted_ && Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
+        silence_noted_ = true;  // once a run: the close says it again
+        spdlog::warn("{} has said nothing in 2 s since the connection opened; {}", conn_->peer(), kTlsHint);
+      }
       const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
       if (Clock::now() - std::max(last_heard_, conn_->header_arrived()) > limit) {
         conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
@@ -740,7 +753,9 @@ class WorkerClient {
   std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
   std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session
   int probes_this_session_ = 0;
-  Clock::time_point lost_since_, last_heard_;
+  Clock::time_point lost_since_, last_heard_, connected_at_;
+  bool heard_ = false;          // a message came on this connection
+  bool silence_noted_ = false;  // the no-challenge warning was given
   std::string current_type_;
   std::shared_ptr<SceneSlot> scene_;
   proto::SceneOffer scene_offer_;

@@ -1,9 +1,11 @@
 // rtc-worker: connects to an rtc-master, receives its scene and renders the tiles it is given
 // on all cores, streaming the pixels back; reconnects with back-off when the master goes away.
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include "common/base/cli_checks.h"
 #include "common/base/error.h"
@@ -24,13 +26,13 @@ int run(int argc, char** argv) {
   std::string token_file, isa_text, log_level = "info", kd_clip = "auto";
   app.add_option("--connect", o.connect, "the master's HOST:PORT")->capture_default_str();
   app.add_option("--threads", o.threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
-  app.add_option("--token-file", token_file, "file holding the shared token the master requires");
+  app.add_option("--token-file", token_file, "file holding the shared token the master requires")->check(rtc::kNotEmpty);
   app.add_option("--tls-ca", o.tls_ca, "PEM certificates to trust: connect over TLS and verify the master's certificate")
       ->check(CLI::ExistingFile);
-  app.add_option("--tls-server-name", o.tls_server_name, "the name the master's certificate must carry (default: the --connect host)");
-  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support");
+  app.add_option("--tls-server-name", o.tls_server_name, "the name the master's certificate must carry (default: the --connect host)")->check(rtc::kNotEmpty);
+  app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support")->check(rtc::kNotEmpty);
   rtc::add_kd_clip_option(app, kd_clip);
-  app.add_option("--name", o.name, "name shown in the master's log (default: the host name)");
+  app.add_option("--name", o.name, "name shown in the master's log (default: the host name)")->check(rtc::kNotEmpty);
   app.add_option("--retry-seconds", o.retry_seconds,
                  "give up when the master has been unreachable this long (0: retry for ever)")
       ->check(rtc::kNotNan)
@@ -38,7 +40,7 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--stay", o.stay, "when the master says goodbye, wait for the next one instead of exiting");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-worker")) return *status;
   rtc::init_logging(log_level);
   rtc::log_freed_memory_policy(freed_memory);
   if (!isa_text.empty()) {
@@ -50,7 +52,12 @@ int run(int argc, char** argv) {
     }
   }
   o.kd_clip = rtc::parse_kd_clip(kd_clip);
-  if (!token_file.empty()) o.token = rtc::protocol::read_token_file(token_file);
+  if (!token_file.empty()) {
+    o.token = rtc::protocol::read_token_file(token_file);
+    if (const std::string warning = rtc::protocol::weak_token_warning(o.token, token_file); !warning.empty()) {
+      spdlog::warn("{}", warning);
+    }
+  }
   return rtc::run_worker(o);
 }
 

@@ -3,6 +3,8 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <system_error>
 
 namespace rtc {
 
@@ -21,6 +23,14 @@ std::string at_location(std::string_view file, std::uint64_t line, std::string_v
 
 void throw_at(std::string_view file, std::uint64_t line, std::string_view message) {
   throw Error(at_location(file, line, message));
+}
+
+std::string missing_file_reason(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (std::filesystem::exists(st)) return {};
+  if (!ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory) return "file not found";
+  return ec.message();
 }
 
 namespace detail {

@@ -28,6 +28,11 @@ class Error : public std::runtime_error {
 /// Throws rtc::Error("file:line: message").
 [[noreturn]] void throw_at(std::string_view file, std::uint64_t line, std::string_view message);
 
+/// Why nothing usable is at `path`: empty when something is there (a file, a folder, ...),
+/// "file not found" when nothing is, else the system's reason ("Too many levels of symbolic
+/// links" for a link loop, "Permission denied" for a folder on the way that cannot be searched).
+[[nodiscard]] std::string missing_file_reason(const std::string& path);
+
 namespace detail {
 [[noreturn]] void check_failed(const char* expr, const char* file, int line, const char* message);
 }  // namespace detail

@@ -29,6 +29,7 @@
 #include <tiny_gltf.h>
 
 #include "common/base/error.h"
+#include "common/base/log.h"
 #include "common/scene/file_bytes.h"
 #include "common/scene/material_values.h"
 #include "common/scene/mesh_builder.h"
@@ -88,6 +89,20 @@ bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, in
 
 class GltfReader {
  public:
+  /// Textures are never read (a texture file missing is no error either): a textured model is
+  /// drawn with its materials' colour factors, which its author may not expect. Said once a file.
+  void note_textures() const {
+    std::size_t textured = 0;
+    for (const tinygltf::Material& m : model_.materials) {
+      if (m.pbrMetallicRoughness.baseColorTexture.index >= 0) ++textured;
+    }
+    if (textured > 0) {
+      spdlog::info("{}: {} of {} materials have a base colour texture; rtc draws their colour factors only "
+                   "(textures are not read)",
+                   file_, textured, model_.materials.size());
+    }
+  }
+
   explicit GltfReader(const std::filesystem::path& path)
       : path_(path), file_(path.string()), builder_(path.stem().string(), path.string()) {}
 
@@ -97,6 +112,7 @@ class GltfReader {
     material_of_.resize(model_.materials.size());
     for (std::size_t i = 0; i < model_.materials.size(); ++i) material_of_[i] = material_id(to_material(i));
     if (materials_.empty()) materials_.emplace_back();
+    note_textures();
     for (const int root : roots()) visit(root, glm::dmat4(1.0), 0);
     MeshFile file;
     file.mesh = builder_.finish();

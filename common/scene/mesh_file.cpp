@@ -28,8 +28,8 @@ MeshFile load_mesh_file(const std::filesystem::path& path, const MeshLoadOptions
                  "; decompress it first (e.g. " + (ext == ".gz" ? "gunzip -k " : "xz -dk ") +
                  path.filename().string() + ") and load the result");
   }
+  if (const std::string why = missing_file_reason(file); !why.empty()) throw_at(file, 0, why);
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw_at(file, 0, "file not found");
   if (std::filesystem::is_directory(path, ec)) throw_at(file, 0, "is a folder, not a mesh or scene file");
   if (ext == ".obj") return load_obj(path);
   if (ext == ".ply") return load_ply(path);

@@ -13,11 +13,13 @@
 //
 // Supported: v (extra w / colour values ignored), vn, vt (counted for index checks), f with
 // v, v/t, v//n, v/t/n and negative (relative) indices, polygons fan-triangulated from vertex
-// 0, usemtl, mtllib (several files per line allowed). o, g, s, l, p and free-form geometry are
-// skipped. Indices must refer to vertices defined above the face.
+// 0, usemtl, mtllib (several files per line allowed). o, g, s and display statements are
+// skipped quietly; l, p, free-form geometry and unknown keywords are skipped with a warning
+// (once per keyword). Indices must refer to vertices defined above the face.
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -150,10 +152,7 @@ class ObjReader {
       } else if (key == "mtllib") {
         load_libraries(cursor_.rest_of_line());
       } else if (key != "o" && key != "g" && key != "s" && key != "vp" && key != "#") {
-        if (skipped_keys_.insert(std::string(key)).second) {
-          spdlog::debug("{}:{}: OBJ statement {} skipped", path_.string(), cursor_.line(),
-                        quoted(key));
-        }
+        if (skipped_keys_.insert(std::string(key)).second) note_skipped(key);
       }
       cursor_.skip_line();
     }
@@ -279,6 +278,29 @@ class ObjReader {
       } catch (const Error& e) {
         cursor_.fail(std::string("material library: ") + e.what());  // where the OBJ names it
       }
+    }
+  }
+
+  /// The first time a statement rtc does not read comes up in the file. Grouping, display and
+  /// texture-map statements change nothing rtc draws (debug); lines, points and free-form
+  /// curves and surfaces are geometry left out (rtc draws triangles), and a keyword outside the
+  /// OBJ format may be a typo or another format (both warned, with the line).
+  void note_skipped(std::string_view key) {
+    static const std::unordered_set<std::string_view> kNoGeometry = {
+        "mg", "lod", "bevel", "c_interp", "d_interp", "usemap", "maplib", "shadow_obj", "trace_obj",
+        "ctech", "stech", "call", "csh"};
+    static const std::unordered_set<std::string_view> kGeometry = {
+        "l", "p", "curv", "curv2", "surf", "cstype", "deg", "bmat", "step", "parm", "trim", "hole", "scrv", "sp",
+        "end", "con"};
+    if (kNoGeometry.count(key) > 0) {
+      spdlog::debug("{}:{}: OBJ statement {} skipped (it draws nothing)", path_.string(), cursor_.line(), quoted(key));
+    } else if (kGeometry.count(key) > 0) {
+      spdlog::warn("{}:{}: OBJ statement {} skipped, here and below: rtc draws faces (f) only, not lines, points or "
+                   "free-form curves and surfaces",
+                   path_.string(), cursor_.line(), quoted(key));
+    } else {
+      spdlog::warn("{}:{}: unknown OBJ statement {} skipped, here and below", path_.string(), cursor_.line(),
+                   quoted(key));
     }
   }
 

@@ -145,6 +145,25 @@ Camera camera_at(const Scene& scene, int frame) {
   return camera;
 }
 
+std::string frames_outside_animation_note(const Scene& scene, int first, int last) {
+  const Animation& a = scene.animation;
+  if (a.camera.empty() && a.meshes.empty() && a.lights.empty()) return {};
+  if (first >= a.frame_begin && last <= a.frame_end) return {};
+  const auto range = [](int from, int to) {
+    return from == to ? "frame " + std::to_string(from) : "frames " + std::to_string(from) + "-" + std::to_string(to);
+  };
+  std::string note = range(first, last) + (first == last ? " lies" : " reach") + " outside the scene's animation range (" +
+                     range(a.frame_begin, a.frame_end) + "), where every track holds its nearest key:";
+  if (first < a.frame_begin) {
+    note += " frames before " + std::to_string(a.frame_begin) + " show frame " + std::to_string(a.frame_begin);
+  }
+  if (last > a.frame_end) {
+    if (first < a.frame_begin) note += ",";
+    note += " frames after " + std::to_string(a.frame_end) + " show frame " + std::to_string(a.frame_end);
+  }
+  return note;
+}
+
 void check_cameras(const Scene& scene, int first, int last, const std::string& scene_name) {
   const auto check = [&](long long frame) {
     try {

@@ -187,6 +187,12 @@ struct FramePose {
 /// worker in the middle of a run. Visits only the frames its keys span.
 void check_cameras(const Scene& scene, int first, int last, const std::string& scene_name);
 
+/// A note for frames [first, last] that reach outside an animated scene's range (a camera,
+/// mesh or light track): there every track holds its nearest key, so those frames repeat the
+/// range's first or last picture, which is rarely what was meant. Empty for frames inside the
+/// range, and for a scene with no tracks (its every frame is the same picture by design).
+[[nodiscard]] std::string frames_outside_animation_note(const Scene& scene, int first, int last);
+
 /// Evaluates the animation at `frame` (deterministic; double-precision interpolation, rotations
 /// by slerp_shortest: the same bits on every CPU).
 [[nodiscard]] FramePose pose_at(const Scene& scene, int frame);

@@ -490,11 +490,12 @@ class SceneJsonLoader {
     if (entry.file.find('\0') != std::string::npos) r_.fail(file_field(entry), "file name contains a NUL byte");
     entry.resolved =
         fs::path(entry.file).is_absolute() ? fs::path(entry.file) : folder_ / entry.file;
-    std::error_code ec;
-    if (!fs::exists(entry.resolved, ec)) {
-      r_.fail(file_field(entry), "mesh file \"" + entry.file + "\" not found (looked for " +
-                                     entry.resolved.string() + ")");
+    if (const std::string why = missing_file_reason(entry.resolved.string()); !why.empty()) {
+      r_.fail(file_field(entry), "mesh file \"" + entry.file + "\" " +
+                                     (why == "file not found" ? std::string("not found") : "cannot be used: " + why) +
+                                     " (looked for " + entry.resolved.string() + ")");
     }
+    std::error_code ec;
     entry.key = fs::weakly_canonical(entry.resolved, ec).string();
     if (ec) entry.key = entry.resolved.string();
     if (entry.tessellation) {

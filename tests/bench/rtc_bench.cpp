@@ -500,7 +500,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-mirrors", no_mirrors, "scene variant: no reflective materials (no mirror rays)");
   app.add_flag("--no-aovs", no_aovs, "full mode: render colour only, no depth and normal channels");
   app.add_option("--spp", spp, "samples per pixel (default: the scene's)")->check(CLI::Range(1, 4096));
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-bench")) return *status;
   const rtc::ShadowOrder shadow_order = rtc::parse_shadow_order(shadow_order_text);
   const std::optional<rtc::ShadowOrder> ab_shadow_order =
       ab_shadow_order_text.empty() ? std::nullopt : std::optional(rtc::parse_shadow_order(ab_shadow_order_text));

@@ -59,6 +59,36 @@ expect_in() {
   fi
 }
 
+# expect_usage_error NAME TEXT... -- CMD...: CMD exits with status 2 (a command line it cannot
+# take), one "PROGRAM: error: ..." line on stderr holding every TEXT, the --help pointer, nothing
+# on stdout.
+expect_usage_error() {
+  local name=$1
+  shift
+  local texts=()
+  while [[ $1 != "--" ]]; do
+    texts+=("$1")
+    shift
+  done
+  shift
+  run "$name" "$@"
+  expect_rc "$name" 2
+  local program text
+  program=$(basename "$1")
+  if [[ $(grep -cF -- "$program: error: " "$work/$name.err") -ne 1 ]]; then
+    show "$name" >&2
+    fail "$name: expected one \"$program: error: ...\" line on stderr"
+  fi
+  for text in "${texts[@]}"; do
+    grep -F -- "$program: error: " "$work/$name.err" | grep -qF -- "$text" || {
+      show "$name" >&2
+      fail "$name: the error line lacks \"$text\""
+    }
+  done
+  expect_in "$name" err "run '$program --help' for the options"
+  [[ ! -s $work/$name.out ]] || { show "$name" >&2; fail "$name: wrote to stdout"; }
+}
+
 # expect_error NAME TEXT... -- CMD...: CMD exits with status 1 (not a signal, not an abort),
 # prints one "PROGRAM: error: ..." line on stderr holding every TEXT, and nothing on stdout.
 expect_error() {
@@ -240,10 +270,18 @@ case_bad_output_checked_first() {
     "$render" --frames "" --width 16 --height 16 --out "$work/o.png"
   expect_error log_level "--log-level" '"loud"' -- \
     "$render" --frames 0 --width 16 --height 16 --log-level loud --out "$work/o.png"
-  # CLI11's own checks exit with its codes (105: a value it refuses); NaN used to pass them.
-  run min_weight_nan "$render" --frames 0 --width 16 --height 16 --min-weight nan --out "$work/o.png"
-  expect_rc min_weight_nan 105
-  grep -q -- "--min-weight" "$work/min_weight_nan.err" || fail "min_weight_nan: the message does not name --min-weight"
+  # What CLI11 itself refuses is a usage error: exit 2, one "rtc-render: error: ..." line naming
+  # the option and a pointer to --help (CLI11's own codes were 105-109, with no program name).
+  # NaN used to pass the range checks.
+  expect_usage_error min_weight_nan "--min-weight" "is not a number" -- \
+    "$render" --frames 0 --width 16 --height 16 --min-weight nan --out "$work/o.png"
+  expect_usage_error unknown_option "--colour" -- "$render" --frames 0 --colour red --out "$work/o.png"
+  expect_usage_error width_range "--width" "not in range 1 to 32768" -- "$render" --width 0 --out "$work/o.png"
+  # An empty value is not the option left out (it ran with the best ISA).
+  expect_usage_error isa_empty "--isa: the value is empty" -- "$render" --frames 0 --isa "" --out "$work/o.png"
+  run help "$render" --help
+  expect_rc help 0
+  expect_in help out "--min-weight"
   [[ -z $(find "$work" -name 'o_*' -o -name 'o.png') ]] || fail "an image was written despite a bad option"
 }
 
@@ -292,14 +330,17 @@ case_interrupted() {
   # by SIGINT (130) with a message, every frame file that is there whole (readable, the full
   # size), and no temporary file left (a signal during a write used to leave .f_NNNN.tmp-*).
   local args=(--width 1200 --height 900 --frames 0-5 --temporal off --exr-float)
-  mkdir "$work/whole"
-  local t0 t1
-  t0=$(date +%s.%N)
-  run whole "$render" "${args[@]}" --out "$work/whole/f_####.exr"
-  t1=$(date +%s.%N)
-  expect_rc whole 0
-  local total
-  total=$(python3 -c "print($t1 - $t0)")
+  # The shorter of two uninterrupted runs: under ctest -j a run slowed by another test's load
+  # would put the later signals past the end of runs that go at full speed.
+  local t0 t1 total="" pass
+  for pass in 1 2; do
+    rm -rf "$work/whole" && mkdir "$work/whole"
+    t0=$(date +%s.%N)
+    run whole "$render" "${args[@]}" --out "$work/whole/f_####.exr"
+    t1=$(date +%s.%N)
+    expect_rc whole 0
+    total=$(python3 -c "print(min(x for x in ($t1 - $t0, ${total:-1e9})))")
+  done
   local k i=0 wrote_through=0 stopped=0 f delay
   for k in 1 2 3 4 5 6 7; do
     i=$((i + 1))

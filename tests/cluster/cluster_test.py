@@ -392,11 +392,13 @@ class Case:
         (out folder, stats frames, summary, master, workers)."""
         out = self.mkdir(tag)
         stats = self.path(f"{tag}-stats.json")
-        master, addr, _ = self.start_master(f"{tag}-master", [
+        master, addr, ready = self.start_master(f"{tag}-master", [
             *scene_args, "--frames", frames, "--out", os.path.join(out, f"m_####.{ext}"),
             "--stats-json", stats, "--min-workers", str(workers), *master_extra])
         ws = [self.start_worker(f"{tag}-w{i}", addr, threads, worker_extra) for i in range(workers)]
         expect_exit(master, 0, timeout, "render every frame and exit")
+        if os.path.exists(ready):
+            fail(f"{tag}: the master's ready file {ready} is still there after it exited")
         for w in ws:
             expect_exit(w, 0, 15, "exit 0 after the master's Goodbye")
             expect_log(w, r"said goodbye", "the master's Goodbye", timeout=1)
@@ -1084,6 +1086,12 @@ def case_tls(c):
         fail(f"the TLS master sent an rtc message in clear to a raw TCP peer: {data[:32]!r}")
     expect_log(master, r"TLS handshake with 127\.0\.0\.1:\d+ failed: no handshake within 1500 ms",
                "the raw peer's handshake timeout", watch=[master])
+    # A worker without --tls-ca hears no Challenge; the master drops it at its handshake timeout,
+    # and the worker's message points at --tls-ca.
+    plain = c.start_worker("plain", addr, 1, ["--token-file", token, "--retry-seconds", "1"])
+    expect_exit(plain, 1, 20, "exit 1 after --retry-seconds against a TLS master")
+    expect_log(plain, r"closed the connection without a word from it; .*uses TLS .*give this worker --tls-ca",
+               "the hint that the master uses TLS", timeout=1)
     # A worker that trusts another certificate: exit 1, the reason in its log.
     wrong = c.start_worker("wrong-ca", addr, 1, ["--tls-ca", other_cert, "--token-file", token])
     expect_exit(wrong, 1, 20, "exit 1 on an untrusted master certificate")
@@ -1568,9 +1576,25 @@ def case_master_cli_errors(c):
             fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1")
         if not re.search(pattern, p.log()):
             fail(f"rtc-master {' '.join(args)}: no message matching /{pattern}/ in:\n{p.log()}")
-        if os.path.exists(ready):
+        # (The ready file goes when a master stops listening: its log says whether it listened.)
+        if os.path.exists(ready) or re.search(r"listening on", p.log()):
             fail(f"rtc-master {' '.join(args)} started listening before failing")
         print(f"ok: {' '.join(args)} -> {pattern}")
+    # What CLI11 refuses is a usage error: exit 2, "rtc-master: error: ..." and the --help pointer.
+    usage = [
+        (["--token-file", ""], r"--token-file: the value is empty"),
+        (["--stats-json", ""], r"--stats-json: the value is empty"),
+        (["--min-workers", "0"], r"--min-workers: Value 0 not in range"),
+        (["--colour", "red"], r"The following argument was not expected: --colour"),
+    ]
+    for i, (args, pattern) in enumerate(usage):
+        p = c.spawn(f"usage-{i}", [c.args.master, *SMALL, *args, "--listen", "127.0.0.1:0"])
+        rc = p.wait(30, f"fail on {args}")
+        if rc != 2:
+            fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 2")
+        if not re.search(r"rtc-master: error: " + pattern, p.log()) or "run 'rtc-master --help'" not in p.log():
+            fail(f"rtc-master {' '.join(args)}: no 'rtc-master: error: ' line matching /{pattern}/ in:\n{p.log()}")
+        print(f"ok: {' '.join(args)} -> exit 2, {pattern}")
     _master_memory_counts_the_writer_queue(c)
 
 

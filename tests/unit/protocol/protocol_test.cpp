@@ -891,6 +891,15 @@ TEST_F(TokenFile, StripsTrailingWhitespaceOnly) {
   EXPECT_EQ(read_token_file(write("c", "x")), "x");
 }
 
+TEST(WeakToken, ShortTokensGetAWarningNamingTheFileAndTheFix) {
+  EXPECT_EQ(weak_token_warning(std::string(16, 'k'), "t"), "");
+  EXPECT_EQ(weak_token_warning(std::string(64, 'k'), "t"), "");
+  const std::string warning = weak_token_warning("abc", "/run/token");
+  EXPECT_NE(warning.find("--token-file /run/token: the token is 3 bytes;"), std::string::npos) << warning;
+  EXPECT_NE(warning.find("16 or more random bytes"), std::string::npos) << warning;
+  EXPECT_NE(weak_token_warning(std::string(15, 'k'), "t"), "");
+}
+
 TEST_F(TokenFile, AcceptsExactly4096Bytes) {
   EXPECT_EQ(read_token_file(write("max", std::string(4096, 'k') + "\n")), std::string(4096, 'k'));
 }

@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <string>
 
+#include "common/base/error.h"
 #include "common/scene/file_bytes.h"
 #include "common/scene/mesh_file.h"
 #include "test_files.h"
@@ -115,6 +117,21 @@ TEST(ObjLoader, MissingMtlWarnsAndUsesTheDefaultMaterial) {
   EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]), Material{});
 }
 
+TEST(ObjLoader, GeometryItCannotDrawAndUnknownStatementsAreWarnedOnceEach) {
+  TempDir dir;
+  const auto obj = dir.write("mixed.obj",
+                             "g body\nusemap wood\nv 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\np 1\n"
+                             "frobnicate 1 2\nf 1 2 3\nfrobnicate 3\n");
+  const test::CapturedLog log;
+  const MeshFile file = load_obj(obj);
+  EXPECT_EQ(file.mesh.triangles.size(), 1u);
+  EXPECT_EQ(log.count("warning: " + obj.string() + ":6: OBJ statement \"l\" skipped, here and below: rtc draws faces"),
+            1u);
+  EXPECT_EQ(log.count("mixed.obj:8: OBJ statement \"p\" skipped"), 1u);
+  EXPECT_EQ(log.count("warning: " + obj.string() + ":9: unknown OBJ statement \"frobnicate\" skipped"), 1u);
+  EXPECT_EQ(log.count("warning: "), 3u) << "once per keyword; nothing for g or usemap";
+}
+
 TEST(ObjLoader, IndexOutOfRangeNamesFileAndLine) {
   TempDir dir;
   const auto obj = dir.write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n# comment\nf 1 2 4\n");
@@ -190,6 +207,18 @@ TEST(MeshFile, MissingFileAndUnknownFormatAreRejected) {
   const auto gz = dir.write("x.nff.gz", "\x1f\x8b");
   EXPECT_NE(error_of([&] { (void)load_mesh_file(gz); }).find("decompress"), std::string::npos);
   EXPECT_NE(error_of([&] { (void)load_obj(dir.path()); }).find("cannot"), std::string::npos);
+}
+
+TEST(MeshFile, ALinkLoopIsNamedAsOneNotAsMissing) {
+  TempDir dir;
+  std::filesystem::create_symlink("b.obj", dir.path() / "a.obj");
+  std::filesystem::create_symlink("a.obj", dir.path() / "b.obj");
+  const std::string message = error_of([&] { (void)load_mesh_file(dir.path() / "a.obj"); });
+  EXPECT_NE(message.find("a.obj: Too many levels of symbolic links"), std::string::npos) << message;
+  EXPECT_EQ(message.find("not found"), std::string::npos) << message;
+  EXPECT_EQ(missing_file_reason((dir.path() / "absent.obj").string()), "file not found");
+  EXPECT_EQ(missing_file_reason((dir.path() / "absent" / "x.obj").string()), "file not found");
+  EXPECT_EQ(missing_file_reason(dir.path().string()), "");
 }
 
 TEST(MeshFile, DevicesAreNotRead) {
@@ -500,6 +529,24 @@ TEST(GltfLoader, BakesNodeTransformsAndInstances) {
   EXPECT_EQ(mesh.positions[mesh.triangles[0].y], glm::vec3(11, 0, 0));
   EXPECT_EQ(mesh.positions[mesh.triangles[1].z], glm::vec3(0, 2, 5));
   EXPECT_EQ(file.materials.at(mesh.material_ids[0]).diffuse, glm::vec3(0.2f, 0.4f, 0.6f));
+}
+
+TEST(GltfLoader, TexturesAreNotReadAndThatIsSaid) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string factor = R"("baseColorFactor": [0.2, 0.4, 0.6, 1.0])";
+  ASSERT_NE(gltf.find(factor), std::string::npos);
+  gltf.replace(gltf.find(factor), factor.size(), factor + R"(, "baseColorTexture": {"index": 0})");
+  const std::string materials = R"("materials": [)";
+  gltf.replace(gltf.find(materials), materials.size(),
+               R"("images": [{"uri": "absent.png"}], "textures": [{"source": 0}], "materials": [)");
+  const test::CapturedLog log;
+  const MeshFile file = load_gltf(dir.write("tex.gltf", gltf));  // the missing image is no error
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]).diffuse, glm::vec3(0.2f, 0.4f, 0.6f));
+  EXPECT_EQ(log.count("tex.gltf: 1 of 1 materials have a base colour texture; rtc draws their colour factors only"), 1u);
+  const test::CapturedLog quiet;
+  (void)load_gltf(dir.write("plain.gltf", test::small_gltf()));
+  EXPECT_EQ(quiet.count("texture"), 0u);
 }
 
 TEST(GltfLoader, PositionsBeyondTheFloatRangeAreRejected) {

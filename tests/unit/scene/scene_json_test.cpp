@@ -206,6 +206,14 @@ TEST(SceneJson, MissingMeshFileNamesFieldAndPath) {
               HasSubstr("missing field \"meshes[0].file\""));
 }
 
+TEST(SceneJson, AMeshFileInALinkLoopSaysSo) {
+  JsonCase c;
+  std::filesystem::create_symlink("b.ply", c.dir.path() / "a.ply");
+  std::filesystem::create_symlink("a.ply", c.dir.path() / "b.ply");
+  EXPECT_THAT(c.error(R"({"mesh": "a.ply"})"),
+              HasSubstr("field \"mesh\": mesh file \"a.ply\" cannot be used: Too many levels of symbolic links"));
+}
+
 TEST(SceneJson, BadMeshFileErrorsNameBothFiles) {
   JsonCase c;
   (void)c.dir.write("broken.obj", "v 0 0 0\nf 1 2 3\n");

@@ -464,6 +464,24 @@ TEST(Scene, CheckCamerasFindsTheBadFrameOfALongSpan) {
   EXPECT_EQ(check_cameras_error(turning, 0, 900000000), "s.json: frame 300000000: camera: up is parallel to the view direction");
 }
 
+TEST(Scene, FramesOutsideTheAnimationRangeAreNoted) {
+  const Scene scene = camera_through_look_at();  // frames 0-30, camera keys at 10 and 20
+  EXPECT_EQ(frames_outside_animation_note(scene, 0, 30), "");
+  EXPECT_EQ(frames_outside_animation_note(scene, 7, 7), "");
+  EXPECT_EQ(frames_outside_animation_note(scene, 50, 50),
+            "frame 50 lies outside the scene's animation range (frames 0-30), where every track holds its nearest "
+            "key: frames after 30 show frame 30");
+  Scene later = scene;
+  later.animation.frame_begin = 5;
+  EXPECT_EQ(frames_outside_animation_note(later, 0, 40),
+            "frames 0-40 reach outside the scene's animation range (frames 5-30), where every track holds its nearest "
+            "key: frames before 5 show frame 5, frames after 30 show frame 30");
+  // A scene with no track is the same picture at every frame by design: nothing to note.
+  EXPECT_EQ(frames_outside_animation_note(test::one_triangle_scene(), 0, 100), "");
+  // The default scene's moving sphere is a mesh track.
+  EXPECT_NE(frames_outside_animation_note(default_scene(), 0, 24), "");
+}
+
 TEST(Scene, CheckCamerasWithoutKeysChecksTheSceneCamera) {
   Scene scene = test::one_triangle_scene();
   EXPECT_EQ(check_cameras_error(scene, 0, 100), "");
