@@ -330,9 +330,12 @@ class WorkerClient {
   // ---- connecting --------------------------------------------------------------------------
 
   // An rtc-master sends its challenge as soon as a plain connection opens; one that listens with
-  // TLS waits for a TLS handshake instead, and closes the connection after 10 s without one.
+  // TLS waits for a TLS handshake instead, and closes the connection after its --auth-timeout.
+  // (A master also closes a connection over its per-host limits without a word, saying why in
+  // its own log.)
   static constexpr const char* kTlsHint =
-      "an rtc-master speaks first unless it uses TLS (its log says \"TLS\"): then give this worker --tls-ca";
+      "the master may use TLS (its \"listening on\" line says \"TLS\", not \"no TLS\"): then give this worker "
+      "--tls-ca";
 
   void connect() {
     if (finished_) return;
@@ -451,12 +454,10 @@ class WorkerClient {
     receiving_scene_ = false;
     last_heard_ = Clock::now();
     connected_at_ = last_heard_;
-    heard_ = false;
     const std::uint64_t session = session_;
     conn_->start([this, session](proto::Message&& m, std::size_t) {
                    if (session != session_) return;
                    last_heard_ = Clock::now();
-                   heard_ = true;
                    current_type_ = proto::type_name(static_cast<std::uint16_t>(proto::type_of(m)));
                    std::visit([&](auto&& msg) { handle(std::move(msg)); }, std::move(m));
                  },
@@ -467,6 +468,8 @@ class WorkerClient {
 
   void on_close(std::uint64_t session, const std::string& reason) {
     if (session != session_) return;
+    // Nothing came before the close: not even a message's header.
+    const bool silent = conn_ && conn_->header_arrived() == std::chrono::steady_clock::time_point{};
     conn_.reset();
     ++session_;
     pool_.set_session(session_);
@@ -488,7 +491,7 @@ class WorkerClient {
     } else {
       // Reached, but the handshake failed (a bad message, a non-rtc server): say why every time.
       spdlog::warn("connection to {} failed before the master welcomed this worker: {}{}", options_.connect, reason,
-                   !heard_ && !tls_ ? std::string(" without a word from it; ") + kTlsHint : std::string());
+                   silent && !tls_ ? std::string(" without a word from it; ") + kTlsHint : std::string());
     }
     retry(reason, /*connected=*/true);
   }
@@ -498,7 +501,8 @@ class WorkerClient {
     watchdog_.expires_after(std::chrono::seconds(1));
     watchdog_.async_wait([this](const asio::error_code& ec) {
       if (ec || !conn_) return;
-      if (!heard_ && !tls_ && !silence_noted_ && Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
+      if (conn_->header_arrived() == std::chrono::steady_clock::time_point{} && !tls_ && !silence_noted_ &&
+          Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
         silence_noted_ = true;  // once a run: the close says it again
         spdlog::warn("{} has said nothing in 2 s since the connection opened; {}", conn_->peer(), kTlsHint);
       }
@@ -754,8 +758,7 @@ class WorkerClient {
   std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session
   int probes_this_session_ = 0;
   Clock::time_point lost_since_, last_heard_, connected_at_;
-  bool heard_ = false;          // a message came on this connection
-  bool silence_noted_ = false;  // the no-challenge warning was given
+  bool silence_noted_ = false;  // the no-challenge warning was given (once a run)
   std::string current_type_;
   std::shared_ptr<SceneSlot> scene_;
   proto::SceneOffer scene_offer_;

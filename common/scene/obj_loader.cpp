@@ -152,7 +152,7 @@ class ObjReader {
       } else if (key == "mtllib") {
         load_libraries(cursor_.rest_of_line());
       } else if (key != "o" && key != "g" && key != "s" && key != "vp" && key != "#") {
-        if (skipped_keys_.insert(std::string(key)).second) note_skipped(key);
+        note_skipped(key);
       }
       cursor_.skip_line();
     }
@@ -289,15 +289,17 @@ class ObjReader {
     static const std::unordered_set<std::string_view> kNoGeometry = {
         "mg", "lod", "bevel", "c_interp", "d_interp", "usemap", "maplib", "shadow_obj", "trace_obj",
         "ctech", "stech", "call", "csh"};
-    static const std::unordered_set<std::string_view> kGeometry = {
-        "l", "p", "curv", "curv2", "surf", "cstype", "deg", "bmat", "step", "parm", "trim", "hole", "scrv", "sp",
-        "end", "con"};
+    static const std::unordered_set<std::string_view> kFreeForm = {
+        "curv", "curv2", "surf", "cstype", "deg", "bmat", "step", "parm", "trim", "hole", "scrv", "sp", "end", "con"};
+    // One note per keyword, and one for the whole free-form family (a curve takes five statements).
+    const bool free_form = kFreeForm.count(key) > 0;
+    if (!skipped_keys_.insert(free_form ? std::string("free-form") : std::string(key)).second) return;
     if (kNoGeometry.count(key) > 0) {
       spdlog::debug("{}:{}: OBJ statement {} skipped (it draws nothing)", path_.string(), cursor_.line(), quoted(key));
-    } else if (kGeometry.count(key) > 0) {
-      spdlog::warn("{}:{}: OBJ statement {} skipped, here and below: rtc draws faces (f) only, not lines, points or "
+    } else if (free_form || key == "l" || key == "p") {
+      spdlog::warn("{}:{}: OBJ statement {} skipped{}, here and below: rtc draws faces (f) only, not lines, points or "
                    "free-form curves and surfaces",
-                   path_.string(), cursor_.line(), quoted(key));
+                   path_.string(), cursor_.line(), quoted(key), free_form ? " with the other free-form statements" : "");
     } else {
       spdlog::warn("{}:{}: unknown OBJ statement {} skipped, here and below", path_.string(), cursor_.line(),
                    quoted(key));

@@ -148,18 +148,27 @@ Camera camera_at(const Scene& scene, int frame) {
 std::string frames_outside_animation_note(const Scene& scene, int first, int last) {
   const Animation& a = scene.animation;
   if (a.camera.empty() && a.meshes.empty() && a.lights.empty()) return {};
-  if (first >= a.frame_begin && last <= a.frame_end) return {};
+  // Keys may lie outside the declared range, and the picture changes up to the last of them.
+  int lo = a.frame_begin, hi = a.frame_end;
+  const auto span = [&](const auto& keys) {
+    for (const auto& key : keys) {
+      lo = std::min(lo, key.frame);
+      hi = std::max(hi, key.frame);
+    }
+  };
+  span(a.camera);
+  for (const MeshTrack& t : a.meshes) span(t.keys);
+  for (const LightTrack& t : a.lights) span(t.keys);
+  if (first >= lo && last <= hi) return {};
   const auto range = [](int from, int to) {
     return from == to ? "frame " + std::to_string(from) : "frames " + std::to_string(from) + "-" + std::to_string(to);
   };
-  std::string note = range(first, last) + (first == last ? " lies" : " reach") + " outside the scene's animation range (" +
-                     range(a.frame_begin, a.frame_end) + "), where every track holds its nearest key:";
-  if (first < a.frame_begin) {
-    note += " frames before " + std::to_string(a.frame_begin) + " show frame " + std::to_string(a.frame_begin);
-  }
-  if (last > a.frame_end) {
-    if (first < a.frame_begin) note += ",";
-    note += " frames after " + std::to_string(a.frame_end) + " show frame " + std::to_string(a.frame_end);
+  std::string note = range(first, last) + (first == last ? " lies" : " reach") + " outside the scene's animation (" +
+                     range(lo, hi) + ", its range and keys), where every track holds its nearest key:";
+  if (first < lo) note += " frames before " + std::to_string(lo) + " show frame " + std::to_string(lo);
+  if (last > hi) {
+    if (first < lo) note += ",";
+    note += " frames after " + std::to_string(hi) + " show frame " + std::to_string(hi);
   }
   return note;
 }

@@ -367,7 +367,8 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"primary", "shadow", "full"}));
   app.add_option("--isa", isa_text,
                  "kernel ISA: sse4, avx2, avx512, or all (every one this CPU runs; the best is the headline figure); "
-                 "default: the best available, or all with --compare-embree");
+                 "default: the best available, or all with --compare-embree")
+      ->check(rtc::kNotEmpty);
   app.add_flag("--json", json, "one JSON object per line per mode instead of the table");
   app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");

@@ -59,12 +59,12 @@ expect_in() {
   fi
 }
 
-# expect_usage_error NAME TEXT... -- CMD...: CMD exits with status 2 (a command line it cannot
-# take), one "PROGRAM: error: ..." line on stderr holding every TEXT, the --help pointer, nothing
-# on stdout.
-expect_usage_error() {
-  local name=$1
-  shift
+# expect_failure STATUS NAME TEXT... -- CMD...: CMD exits with STATUS (not a signal, not an
+# abort), prints one "PROGRAM: error: ..." line on stderr holding every TEXT, and nothing on
+# stdout.
+expect_failure() {
+  local status=$1 name=$2
+  shift 2
   local texts=()
   while [[ $1 != "--" ]]; do
     texts+=("$1")
@@ -72,36 +72,7 @@ expect_usage_error() {
   done
   shift
   run "$name" "$@"
-  expect_rc "$name" 2
-  local program text
-  program=$(basename "$1")
-  if [[ $(grep -cF -- "$program: error: " "$work/$name.err") -ne 1 ]]; then
-    show "$name" >&2
-    fail "$name: expected one \"$program: error: ...\" line on stderr"
-  fi
-  for text in "${texts[@]}"; do
-    grep -F -- "$program: error: " "$work/$name.err" | grep -qF -- "$text" || {
-      show "$name" >&2
-      fail "$name: the error line lacks \"$text\""
-    }
-  done
-  expect_in "$name" err "run '$program --help' for the options"
-  [[ ! -s $work/$name.out ]] || { show "$name" >&2; fail "$name: wrote to stdout"; }
-}
-
-# expect_error NAME TEXT... -- CMD...: CMD exits with status 1 (not a signal, not an abort),
-# prints one "PROGRAM: error: ..." line on stderr holding every TEXT, and nothing on stdout.
-expect_error() {
-  local name=$1
-  shift
-  local texts=()
-  while [[ $1 != "--" ]]; do
-    texts+=("$1")
-    shift
-  done
-  shift
-  run "$name" "$@"
-  expect_rc "$name" 1
+  expect_rc "$name" "$status"
   local program line text
   program=$(basename "$1")
   if [[ $(grep -cF -- "$program: error: " "$work/$name.err") -ne 1 ]]; then
@@ -125,6 +96,19 @@ expect_error() {
     show "$name" >&2
     fail "$name: a failed run printed a summary on stdout"
   fi
+}
+
+# expect_error NAME TEXT... -- CMD...: bad input, exit status 1 (expect_failure).
+expect_error() { expect_failure 1 "$@"; }
+
+# expect_usage_error NAME TEXT... -- CMD...: a command line CMD cannot take: exit status 2, and
+# the error line is followed by the pointer to --help.
+expect_usage_error() {
+  expect_failure 2 "$@"
+  local name=$1 program
+  while [[ $1 != "--" ]]; do shift; done
+  program=$(basename "$2")
+  expect_in "$name" err "run '$program --help' for the options"
 }
 
 # A tiny scene of its own (no dependence on ../shared/scenes): a floor given as one quad

@@ -121,7 +121,8 @@ TEST(ObjLoader, GeometryItCannotDrawAndUnknownStatementsAreWarnedOnceEach) {
   TempDir dir;
   const auto obj = dir.write("mixed.obj",
                              "g body\nusemap wood\nv 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\np 1\n"
-                             "frobnicate 1 2\nf 1 2 3\nfrobnicate 3\n");
+                             "frobnicate 1 2\nf 1 2 3\nfrobnicate 3\ncstype bspline\ndeg 3\ncurv 0 1 1 2 3\nparm u 0 1\n"
+                             "end\n");
   const test::CapturedLog log;
   const MeshFile file = load_obj(obj);
   EXPECT_EQ(file.mesh.triangles.size(), 1u);
@@ -129,7 +130,8 @@ TEST(ObjLoader, GeometryItCannotDrawAndUnknownStatementsAreWarnedOnceEach) {
             1u);
   EXPECT_EQ(log.count("mixed.obj:8: OBJ statement \"p\" skipped"), 1u);
   EXPECT_EQ(log.count("warning: " + obj.string() + ":9: unknown OBJ statement \"frobnicate\" skipped"), 1u);
-  EXPECT_EQ(log.count("warning: "), 3u) << "once per keyword; nothing for g or usemap";
+  EXPECT_EQ(log.count("mixed.obj:12: OBJ statement \"cstype\" skipped with the other free-form statements"), 1u);
+  EXPECT_EQ(log.count("warning: "), 4u) << "once per keyword, once for the free-form family; nothing for g or usemap";
 }
 
 TEST(ObjLoader, IndexOutOfRangeNamesFileAndLine) {

@@ -469,13 +469,18 @@ TEST(Scene, FramesOutsideTheAnimationRangeAreNoted) {
   EXPECT_EQ(frames_outside_animation_note(scene, 0, 30), "");
   EXPECT_EQ(frames_outside_animation_note(scene, 7, 7), "");
   EXPECT_EQ(frames_outside_animation_note(scene, 50, 50),
-            "frame 50 lies outside the scene's animation range (frames 0-30), where every track holds its nearest "
-            "key: frames after 30 show frame 30");
+            "frame 50 lies outside the scene's animation (frames 0-30, its range and keys), where every track holds "
+            "its nearest key: frames after 30 show frame 30");
   Scene later = scene;
   later.animation.frame_begin = 5;
   EXPECT_EQ(frames_outside_animation_note(later, 0, 40),
-            "frames 0-40 reach outside the scene's animation range (frames 5-30), where every track holds its nearest "
-            "key: frames before 5 show frame 5, frames after 30 show frame 30");
+            "frames 0-40 reach outside the scene's animation (frames 5-30, its range and keys), where every track "
+            "holds its nearest key: frames before 5 show frame 5, frames after 30 show frame 30");
+  // Keys past the declared range still move things: the span runs to the last key.
+  Scene keyed_later = scene;
+  keyed_later.animation.frame_end = 15;  // camera keys at 10 and 20
+  EXPECT_EQ(frames_outside_animation_note(keyed_later, 0, 20), "");
+  EXPECT_NE(frames_outside_animation_note(keyed_later, 0, 21).find("frames after 20 show frame 20"), std::string::npos);
   // A scene with no track is the same picture at every frame by design: nothing to note.
   EXPECT_EQ(frames_outside_animation_note(test::one_triangle_scene(), 0, 100), "");
   // The default scene's moving sphere is a mesh track.
