@@ -33,10 +33,11 @@ if [ "$build_only" = 0 ]; then
     # tests/deploy: compose v1, a base image made without a registry (debootstrap + docker import)
     docker-compose debootstrap
   )
-  # ... and a Docker engine started by hand (no systemd): Debian's, unless one is installed
-  # already (Docker's own docker-ce and containerd.io conflict with Debian's containerd and runc,
-  # and installing those would remove them).
-  command -v docker >/dev/null 2>&1 || packages+=(docker.io containerd runc)
+  # ... and a Docker engine started by hand (no systemd): Debian's, unless an engine (dockerd) is
+  # installed already (Docker's own docker-ce and containerd.io conflict with Debian's containerd
+  # and runc, and installing those would remove them). A docker client alone is not an engine:
+  # these machines' images carry one in /usr/local/bin.
+  command -v dockerd >/dev/null 2>&1 || packages+=(docker.io containerd runc)
 fi
 
 missing=()

@@ -4,7 +4,8 @@
 # exit, error or Ctrl-C (Ctrl-C: the master finishes the frames in flight, then all stop).
 #
 # Usage: ./deploy/launch-local.sh [N] [SCENE] [-- extra rtc-master args]
-#   N      workers (default: the machine's core count); each gets cores/N threads (at least 1)
+#   N      workers (default: the machine's core count); each gets cores/N threads (at least 1);
+#          a first argument that is not a number is the SCENE
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
 # Frames go to out/cluster/<scene>_NNNN.png (rtc-master --out-dir: <scene> is the scene's name as
@@ -30,8 +31,17 @@ fi
 
 workers="$(nproc)"
 scene=()
-if [ $# -gt 0 ] && [ "$1" != "--" ]; then
-  if ! [[ "$1" =~ ^[0-9]+$ ]] || [[ "$1" =~ ^0+$ ]]; then
+# A scene without N: the first argument names a file and is not a number.
+if [ $# -gt 0 ] && [ "$1" != "--" ] && ! [[ "$1" =~ ^[0-9]+$ ]]; then
+  if [ ! -f "$1" ]; then
+    echo "launch-local: \"$1\" is neither a number of workers nor a scene file (usage: launch-local.sh [N] [SCENE] [-- rtc-master args])" >&2
+    exit 2
+  fi
+  scene=("$1")
+  shift
+fi
+if [ ${#scene[@]} -eq 0 ] && [ $# -gt 0 ] && [ "$1" != "--" ]; then
+  if [[ "$1" =~ ^0+$ ]]; then
     echo "launch-local: N must be a positive number of workers, got \"$1\"" >&2
     exit 2
   fi
@@ -45,7 +55,7 @@ if [ $# -gt 0 ] && [ "$1" != "--" ]; then
   workers="$((10#$1))"
   shift
 fi
-if [ $# -gt 0 ] && [ "$1" != "--" ]; then
+if [ ${#scene[@]} -eq 0 ] && [ $# -gt 0 ] && [ "$1" != "--" ]; then
   [ -f "$1" ] || { echo "launch-local: scene file $1 does not exist" >&2; exit 2; }
   scene=("$1")
   shift

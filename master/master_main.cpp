@@ -37,7 +37,7 @@ int run(int argc, char** argv) {
   app.add_option("--listen", o.listen, "HOST:PORT to accept workers on; port 0 picks a free one; a non-loopback "
                                        "address needs --token-file")
       ->capture_default_str();
-  auto* frames_opt = app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
+  auto* frames_opt = app.add_option("--frames", frames_text, "frames to render, A-B or A, inclusive (default: the scene's animation range)");
   app.add_option("--loop", o.loop_seconds, "render the frames over and over for this many seconds (a frame-rate run)")
       ->check(rtc::kNotNan)
       ->check(CLI::Range(0.001, 1e9))
@@ -113,7 +113,7 @@ int run(int argc, char** argv) {
       o.out_pattern.empty() ? std::nullopt : rtc::image_file_kind(o.out_pattern);
   const bool exr = kind == rtc::ImageFileKind::Exr;
   const bool tiff = kind == rtc::ImageFileKind::Tiff;
-  if (wire_text.empty()) {
+  if (app.count("--wire") == 0) {  // an empty --wire "" is a bad word, not the default
     o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half)
                  : (tiff ? rtc::WireFormat::Float : rtc::WireFormat::Rgba8);
   } else {

@@ -119,10 +119,10 @@ int run(int argc, char** argv) {
   bool exr_float = false, single_rays = false, no_depth = false, no_normal = false, no_specialise = false,
        no_skip_empty = false, rebuild_moving = false;
   rtc::add_scene_cli_options(app, scene_options);
-  app.add_option("--frames", frames_text, "frames to render, A-B inclusive (default: the scene's animation range)");
+  app.add_option("--frames", frames_text, "frames to render, A-B or A, inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
                  "output file pattern; #### is the zero-padded frame number; the extension picks the "
-                 "format (.exr, .tif/.tiff, .png, .jpg/.jpeg, .ppm) (default: out/<scene>_####.png)");
+                 "format (.exr, .tif/.tiff, .png, .jpg/.jpeg, .ppm) (default: out/<scene>_####.png, out/<scene>.png for one frame)");
   app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel; default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));

@@ -370,7 +370,8 @@ int run(int argc, char** argv) {
                  "default: the best available, or all with --compare-embree")
       ->check(rtc::kNotEmpty);
   app.add_flag("--json", json, "one JSON object per line per mode instead of the table");
-  app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits");
+  app.add_option("--dump", dump_prefix, "write PREFIX.t.f32 and PREFIX.prim.u32 of the primary hits")
+      ->check(rtc::kNotEmpty);
   app.add_flag("--compare-embree", compare, "trace the same rays with Embree 3 in the same run");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
   app.add_flag("--cpu-time", rtc::bench::g_cpu_time,
@@ -465,7 +466,8 @@ int run(int argc, char** argv) {
   app.add_option("--sweep", sweep_dir,
                  "run time against error: render with every setting that trades time for accuracy, measure each "
                  "against a double-precision reference, write DIR/sweep.csv, DIR/reference.exr and DIR/reference.json "
-                 "(plot with tests/bench/plot_sweep.py)");
+                 "(plot with tests/bench/plot_sweep.py)")
+      ->check(rtc::kNotEmpty);
   app.add_flag("--sweep-quick", sweep_quick, "with --sweep: a few settings per group only");
   app.add_flag("--no-embree-check", no_embree_check, "with --sweep: skip the Embree cross-check of the reference");
   app.add_option("--width", width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));

@@ -1553,6 +1553,7 @@ def case_master_cli_errors(c):
                 "l 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n")
     cases = [
         (["--wire", "rgba16"], r"--wire: expected rgba8, half or float"),
+        (["--wire", ""], r'--wire: expected rgba8, half or float, got ""'),
         (["--compress", "gzip"], r"--compress: expected none, lz4 or zstd"),
         (["--out", c.path("x_####.exr"), "--wire", "rgba8"], r"--wire rgba8 carries 8-bit sRGB"),
         (["--out", c.path("x_####.tif"), "--wire", "rgba8"], r"--wire rgba8 carries 8-bit sRGB"),
@@ -1651,14 +1652,14 @@ def _launcher_env(c):
     return dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
 
 
-def _run_launcher(c, name, extra, interrupt, scene=None):
-    """deploy/launch-local.sh 2 [SCENE] -- EXTRA in its own process group (as from a terminal);
+def _run_launcher(c, name, extra, interrupt, scene=None, workers="2"):
+    """deploy/launch-local.sh [WORKERS] [SCENE] -- EXTRA in its own process group (as from a terminal);
     with `interrupt`, SIGINT to the whole group once the first frame is logged (as Ctrl-C), or
     with interrupt="term" SIGTERM to the script alone (as `kill`), with "term-group" to the whole
     group (as `kill %1` or `timeout`). Returns (rc, log)."""
     log_path = c.path(f"{name}.log")
     with open(log_path, "wb") as log:
-        p = subprocess.Popen(["bash", LAUNCHER, "2", *([scene] if scene else []), "--", *extra],
+        p = subprocess.Popen(["bash", LAUNCHER, *([workers] if workers else []), *([scene] if scene else []), "--", *extra],
                              stdin=subprocess.DEVNULL, stdout=log,
                              stderr=subprocess.STDOUT, cwd=c.tmp, env=_launcher_env(c), start_new_session=True)
     def text():
@@ -1765,7 +1766,8 @@ def case_launch_local(c):
     cube = os.path.join(TEMPORAL_SCENES, "cube.obj")
     with open(scene, "w", encoding="utf-8") as f:
         json.dump({"name": "lab #2/take%3", "mesh": cube, "resolution": [32, 24]}, f)
-    rc, log = _run_launcher(c, "launch-named", ["--frames", "0"], False, scene=scene)
+    # (The scene given without N, as the first argument: N is the core count.)
+    rc, log = _run_launcher(c, "launch-named", ["--frames", "0"], False, scene=scene, workers=None)
     cluster_out = os.path.join(c.tmp, "out", "cluster")
     written = sorted(os.listdir(cluster_out)) if os.path.isdir(cluster_out) else []
     if rc != 0 or written != ["lab__2_take_3_0000.png"]:
