@@ -265,13 +265,22 @@ class Master {
   }
 
   /// The ready file says "listening on HOST:PORT": it goes when the master stops listening, so a
-  /// script never finds a finished master's address (or the last run's) and waits on it.
+  /// script never finds a finished master's address (or the last run's) and waits on it. Only
+  /// while it still holds this master's address: another master given the same path keeps its own.
   void remove_ready_file() noexcept {
     if (!ready_file_written_) return;
     ready_file_written_ = false;
-    std::error_code ec;
-    std::filesystem::remove(options_.ready_file, ec);
-    if (ec) spdlog::warn("--ready-file: cannot remove {}: {}", options_.ready_file, ec.message());
+    try {
+      std::ifstream in(options_.ready_file);
+      std::string line;
+      if (!std::getline(in, line) || line != listening_on_) return;
+      in.close();
+      std::error_code ec;
+      std::filesystem::remove(options_.ready_file, ec);
+      if (ec) spdlog::warn("--ready-file: cannot remove {}: {}", options_.ready_file, ec.message());
+    } catch (const std::exception&) {
+      // Left in place: a stale address is what a ready file meant before.
+    }
   }
 
   void accept() {
