@@ -147,12 +147,7 @@ int run(int argc, char** argv) {
                      " tile of that size (with its EXR channels) exceeds the " +
                      std::to_string(rtc::protocol::kMaxPayload >> 20) + " MiB message limit; use a smaller --tile");
   }
-  if (!token_file.empty()) {
-    o.token = rtc::protocol::read_token_file(token_file);
-    if (const std::string warning = rtc::protocol::weak_token_warning(o.token, token_file); !warning.empty()) {
-      spdlog::warn("{}", warning);
-    }
-  }
+  if (!token_file.empty()) o.token = rtc::protocol::read_token_file_warning_if_weak(token_file);
   // Three heartbeats fit in the timeout, so one late answer does not drop a worker.
   o.heartbeat_ms = std::min(o.heartbeat_ms, o.heartbeat_timeout_ms / 3);
   std::optional<rtc::FrameRange> requested;

@@ -7,6 +7,7 @@
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
 #include <openssl/rand.h>
+#include <spdlog/spdlog.h>
 
 #include <cerrno>
 #include <cstring>
@@ -102,6 +103,12 @@ std::string read_token_file(const std::filesystem::path& path) {
              "token of " + std::to_string(token.size()) + " bytes, over the limit of " + std::to_string(kMaxToken));
   if (token.find('\0') != std::string::npos)
     throw_at(where, 0, "token contains a NUL byte at offset " + std::to_string(token.find('\0')));
+  return token;
+}
+
+std::string read_token_file_warning_if_weak(const std::string& path) {
+  std::string token = read_token_file(path);
+  if (const std::string warning = weak_token_warning(token, path); !warning.empty()) spdlog::warn("{}", warning);
   return token;
 }
 

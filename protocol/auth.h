@@ -34,5 +34,8 @@ inline constexpr std::size_t kMinStrongToken = 16;
 /// A warning for a token from `path` shorter than kMinStrongToken bytes ("" for a longer one):
 /// the programs log it and go on, since a short token still keeps out a peer that lacks it.
 [[nodiscard]] std::string weak_token_warning(const std::string& token, const std::string& path);
+/// read_token_file, and weak_token_warning's warning in the log where there is one: what
+/// rtc-master and rtc-worker do with --token-file.
+[[nodiscard]] std::string read_token_file_warning_if_weak(const std::string& path);
 
 }  // namespace rtc::protocol

@@ -337,6 +337,9 @@ class WorkerClient {
       "the master may use TLS (its \"listening on\" line says \"TLS\", not \"no TLS\"): then give this worker "
       "--tls-ca";
 
+  /// Nothing has come on the current connection, not even a message's header.
+  [[nodiscard]] bool nothing_heard() const { return conn_->header_arrived() == Clock::time_point{}; }
+
   void connect() {
     if (finished_) return;
     auto socket = std::make_shared<asio::ip::tcp::socket>(io_);
@@ -468,8 +471,7 @@ class WorkerClient {
 
   void on_close(std::uint64_t session, const std::string& reason) {
     if (session != session_) return;
-    // Nothing came before the close: not even a message's header.
-    const bool silent = conn_ && conn_->header_arrived() == std::chrono::steady_clock::time_point{};
+    const bool silent = conn_ && nothing_heard();
     conn_.reset();
     ++session_;
     pool_.set_session(session_);
@@ -501,8 +503,7 @@ class WorkerClient {
     watchdog_.expires_after(std::chrono::seconds(1));
     watchdog_.async_wait([this](const asio::error_code& ec) {
       if (ec || !conn_) return;
-      if (conn_->header_arrived() == std::chrono::steady_clock::time_point{} && !tls_ && !silence_noted_ &&
-          Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
+      if (nothing_heard() && !tls_ && !silence_noted_ && Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
         silence_noted_ = true;  // once a run: the close says it again
         spdlog::warn("{} has said nothing in 2 s since the connection opened; {}", conn_->peer(), kTlsHint);
       }

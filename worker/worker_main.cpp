@@ -5,7 +5,6 @@
 #include <string>
 
 #include <CLI/CLI.hpp>
-#include <spdlog/spdlog.h>
 
 #include "common/base/cli_checks.h"
 #include "common/base/error.h"
@@ -52,12 +51,7 @@ int run(int argc, char** argv) {
     }
   }
   o.kd_clip = rtc::parse_kd_clip(kd_clip);
-  if (!token_file.empty()) {
-    o.token = rtc::protocol::read_token_file(token_file);
-    if (const std::string warning = rtc::protocol::weak_token_warning(o.token, token_file); !warning.empty()) {
-      spdlog::warn("{}", warning);
-    }
-  }
+  if (!token_file.empty()) o.token = rtc::protocol::read_token_file_warning_if_weak(token_file);
   return rtc::run_worker(o);
 }
 

@@ -29,7 +29,7 @@ std::string missing_file_reason(const std::string& path) {
   std::error_code ec;
   const std::filesystem::file_status st = std::filesystem::status(path, ec);
   if (std::filesystem::exists(st)) return {};
-  if (!ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory) return "file not found";
+  if (!ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory) return std::string(kFileNotFound);
   return ec.message();
 }
 

@@ -32,6 +32,8 @@ class Error : public std::runtime_error {
 /// "file not found" when nothing is, else the system's reason ("Too many levels of symbolic
 /// links" for a link loop, "Permission denied" for a folder on the way that cannot be searched).
 [[nodiscard]] std::string missing_file_reason(const std::string& path);
+/// missing_file_reason's answer when nothing is at the path.
+inline constexpr std::string_view kFileNotFound = "file not found";
 
 namespace detail {
 [[noreturn]] void check_failed(const char* expr, const char* file, int line, const char* message);

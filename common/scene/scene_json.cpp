@@ -492,7 +492,7 @@ class SceneJsonLoader {
         fs::path(entry.file).is_absolute() ? fs::path(entry.file) : folder_ / entry.file;
     if (const std::string why = missing_file_reason(entry.resolved.string()); !why.empty()) {
       r_.fail(file_field(entry), "mesh file \"" + entry.file + "\" " +
-                                     (why == "file not found" ? std::string("not found") : "cannot be used: " + why) +
+                                     (why == kFileNotFound ? std::string("not found") : "cannot be used: " + why) +
                                      " (looked for " + entry.resolved.string() + ")");
     }
     std::error_code ec;
