@@ -162,10 +162,7 @@ int run(int argc, char** argv) {
                      " exceeds the cluster's limit of 32768 pixels a side (use --width/--height)");
   }
   const rtc::FrameRange frames = requested.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
-  rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
-  if (const std::string note = rtc::frames_outside_animation_note(scene, frames.first, frames.last); !note.empty()) {
-    spdlog::warn("scene {}: {}", rtc::scene_label(scene_options), note);
-  }
+  rtc::check_frames_to_render(scene, frames.first, frames.last, scene_options);
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;

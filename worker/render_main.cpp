@@ -167,10 +167,7 @@ int run(int argc, char** argv) {
 
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
-  rtc::check_cameras(scene, frames.first, frames.last, rtc::scene_label(scene_options));
-  if (const std::string note = rtc::frames_outside_animation_note(scene, frames.first, frames.last); !note.empty()) {
-    spdlog::warn("scene {}: {}", rtc::scene_label(scene_options), note);
-  }
+  rtc::check_frames_to_render(scene, frames.first, frames.last, scene_options);
   // Each frame is held whole: RGBA float, and depth and normals unless both are left out. Checked
   // before the default output folder is made, so a refused run leaves nothing behind.
   const bool aovs = !(no_depth && no_normal);

@@ -35,6 +35,11 @@ constexpr const char* kHashHint =
     "each run of '#' is the frame number, in folder names too; in a pattern with \"%04d\" for it "
     "every '#' is literal";
 
+// Whether a '%' at `i` begins "%%", a literal '%' (printf's rule), rather than a placeholder.
+bool is_escaped_percent(const std::string& pattern, std::size_t i) {
+  return i + 1 < pattern.size() && pattern[i + 1] == '%';
+}
+
 [[noreturn]] void bad_pattern(const std::string& pattern, const std::string& reason) {
   throw Error(fmt::format("output pattern '{}': {}", pattern, reason));
 }
@@ -49,14 +54,13 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
   // A pattern with a printf-style placeholder treats '#' as an ordinary character, as printf
   // does, so a folder or file name with a '#' in it can be written ("take#2/f_%04d.exr").
   bool printf_style = false;
-  for (std::size_t j = 0; j < pattern.size(); ++j) {
+  for (std::size_t j = 0; j < pattern.size() && !printf_style; ++j) {
     if (pattern[j] != '%') continue;
-    if (j + 1 < pattern.size() && pattern[j + 1] == '%') {
+    if (is_escaped_percent(pattern, j)) {
       ++j;
-      continue;
+    } else {
+      printf_style = true;
     }
-    printf_style = true;
-    break;
   }
 
   std::string out;
@@ -71,7 +75,7 @@ std::string expand_frame_pattern(const std::string& pattern, int frame, bool mul
       ++placeholders;
       i = end;
     } else if (c == '%') {
-      if (i + 1 < pattern.size() && pattern[i + 1] == '%') {
+      if (is_escaped_percent(pattern, i)) {
         out += '%';
         i += 2;
         continue;

@@ -77,4 +77,13 @@ inline Scene load_scene_from_cli(const SceneCliOptions& o) {
   return scene;
 }
 
+/// Checks the camera of every frame in [first, last] (rtc::check_cameras: throws rtc::Error
+/// naming the scene) and warns when some of them lie outside the scene's animation.
+inline void check_frames_to_render(const Scene& scene, int first, int last, const SceneCliOptions& o) {
+  check_cameras(scene, first, last, scene_label(o));
+  if (const std::string note = frames_outside_animation_note(scene, first, last); !note.empty()) {
+    spdlog::warn("scene {}: {}", scene_label(o), note);
+  }
+}
+
 }  // namespace rtc
