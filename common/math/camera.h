@@ -1,6 +1,8 @@
 // The pinhole camera of ../shared/scenes/CAMERA.md and its primary rays.
 #pragma once
 
+#include <string>
+
 #include <glm/glm.hpp>
 
 namespace rtc {
@@ -26,6 +28,13 @@ struct RayD {
   glm::dvec3 origin{0.0};
   glm::dvec3 dir{0.0, 0.0, 1.0};
 };
+
+/// Why `camera` cannot make rays, or "" when it can: a non-finite eye, look_at or up, eye and
+/// look_at that coincide, an up that is zero or parallel to the view direction (the sine of
+/// their angle at most 1e-12; up's length does not matter), or vfov_deg outside (0, 180). In
+/// double, so no coordinate the float range holds overflows or underflows here. The scene
+/// loaders and CameraRays ask the same question.
+[[nodiscard]] std::string camera_problem(const Camera& camera);
 
 /// Precomputed camera frame for a W x H image. Rays follow CAMERA.md exactly; the frame and
 /// each ray are computed in double and rounded once to float, so every tracer (rtc, the

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 
 #include <glm/glm.hpp>
@@ -57,11 +58,46 @@ inline bool shadow_ray_parts(const SurfaceSample& s, const PointLight& light, gl
 
 namespace shading_detail {
 
-/// Normalised, or `fallback` when the length is zero or not finite.
+/// normalize_or for a vector whose squared length a float cannot hold: longer than about
+/// 1.8e19 (it overflows) or shorter than about 1.1e-19 (it underflows or loses bits). In double,
+/// rounded once; `fallback` for zero or non-finite vectors. Rare, so out of line.
+[[gnu::cold, gnu::noinline]] inline glm::vec3 normalize_or_in_double(const glm::vec3& a, const glm::vec3& fallback) {
+  const glm::dvec3 d(a);
+  const double len = glm::length(d);
+  if (!(len > 0.0) || !std::isfinite(len)) return fallback;
+  return glm::vec3(d / len);
+}
+
+/// Normalised, or `fallback` when the length is zero or not finite. A far light (1e20 away, a
+/// directional light's usual stand-in) or a huge or tiny triangle's normal keeps its direction.
 inline glm::vec3 normalize_or(const glm::vec3& a, const glm::vec3& fallback) {
   const float len2 = glm::dot(a, a);
-  if (!(len2 > 0.0f) || !std::isfinite(len2)) return fallback;
+  if (!(len2 >= std::numeric_limits<float>::min() && len2 <= std::numeric_limits<float>::max())) {
+    return normalize_or_in_double(a, fallback);
+  }
   return a * (1.0f / std::sqrt(len2));
+}
+
+/// unit_normal for a triangle whose normal's squared length a float cannot hold: the cross
+/// product in double. Rare, so out of line.
+[[gnu::cold, gnu::noinline]] inline glm::vec3 unit_normal_in_double(const glm::vec3& e1, const glm::vec3& e2) {
+  const glm::dvec3 n = glm::cross(glm::dvec3(e1), glm::dvec3(e2));
+  const double len = glm::length(n);
+  if (!(len > 0.0) || !std::isfinite(len)) return glm::vec3(0, 0, 1);
+  return glm::vec3(n / len);
+}
+
+/// The unit normal of triangle (a, b, c), or +z for one of zero area. The cross product of
+/// edges longer than about 4e9 overflows a float, and of edges shorter than about 1e-10
+/// underflows (loses bits); those go through double.
+inline glm::vec3 unit_normal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  const glm::vec3 e1 = b - a, e2 = c - a;
+  const glm::vec3 n = glm::cross(e1, e2);
+  const float len2 = glm::dot(n, n);
+  if (!(len2 >= std::numeric_limits<float>::min() && len2 <= std::numeric_limits<float>::max())) {
+    return unit_normal_in_double(e1, e2);
+  }
+  return n * (1.0f / std::sqrt(len2));
 }
 
 /// The geometric and shading normals at barycentrics (beta, gamma) of triangle `prim`, both
@@ -73,7 +109,7 @@ struct Normals {
 
 inline Normals normals_at(const FrameGeometry& g, const glm::uvec3& tri, const glm::vec3& a, const glm::vec3& b,
                    const glm::vec3& c, const glm::vec3& dir, std::uint32_t prim, float alpha, float beta, float gamma) {
-  glm::vec3 ng = normalize_or(glm::cross(b - a, c - a), glm::vec3(0, 0, 1));
+  glm::vec3 ng = unit_normal(a, b, c);
   if (glm::dot(ng, dir) > 0.0f) ng = -ng;
   glm::vec3 n = ng;
   if (g.smooth[prim]) {

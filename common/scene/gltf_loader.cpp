@@ -225,7 +225,19 @@ class GltfReader {
     if (!node.rotation.empty()) {
       if (node.rotation.size() != 4) fail(node_name(i) + ": rotation must have 4 numbers");
       // glTF stores x, y, z, w; glm::dquat takes w first.
-      const glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
+      glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
+      // glTF requires a unit quaternion; mat4_cast of another one also scales and skews. A
+      // rounded unit one is taken as it is; others are normalised, with a warning.
+      const double length = glm::length(q);
+      if (!(length > 0.0) || !std::isfinite(length)) fail(node_name(i) + ": rotation must be a non-zero, finite quaternion");
+      if (std::abs(length - 1.0) > 1e-6) {
+        if (std::abs(length - 1.0) > 1e-3) {
+          spdlog::warn("{}: {}: rotation ({}, {}, {}, {}) is not a unit quaternion (length {:.6g}); normalised",
+                       file_, node_name(i), node.rotation[0], node.rotation[1], node.rotation[2],
+                       node.rotation[3], length);
+        }
+        q = q / length;
+      }
       m = m * glm::mat4_cast(q);
     }
     if (!node.scale.empty()) {

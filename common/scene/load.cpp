@@ -68,14 +68,25 @@ void place_auto_camera(Scene& scene) {
 }
 
 void place_default_light(Scene& scene) {
-  const glm::vec3 view = scene.camera.eye - scene.camera.look_at;
-  const float distance = glm::length(view);
-  const glm::vec3 up = glm::normalize(scene.camera.up);
-  glm::vec3 side = glm::cross(view, up);
-  const float side_length = glm::length(side);
-  side = side_length > 0.0f ? side / side_length : glm::vec3(1.0f, 0.0f, 0.0f);
+  // In double, rounded once: a camera far from its target (beyond about 1.8e19, where a float
+  // squared length overflows) still gets a light where it should be.
+  const glm::dvec3 eye(scene.camera.eye);
+  const glm::dvec3 view = eye - glm::dvec3(scene.camera.look_at);
+  const double distance = glm::length(view);
+  const glm::dvec3 up = glm::normalize(glm::dvec3(scene.camera.up));
+  glm::dvec3 side = glm::cross(view, up);
+  const double side_length = glm::length(side);
+  side = side_length > 0.0 ? side / side_length : glm::dvec3(1.0, 0.0, 0.0);
+  const glm::dvec3 position = eye + 0.5 * distance * up + 0.25 * distance * side;
+  const double float_max = std::numeric_limits<float>::max();
+  if (!(std::abs(position.x) <= float_max && std::abs(position.y) <= float_max &&
+        std::abs(position.z) <= float_max)) {
+    throw Error(fmt::format("{}: the automatic light would lie outside the float range (the camera is "
+                            "{:.3g} from its target); give a light",
+                            scene.source.empty() ? scene.name : scene.source.string(), distance));
+  }
   PointLight light;
-  light.position = scene.camera.eye + 0.5f * distance * up + 0.25f * distance * side;
+  light.position = glm::vec3(position);
   light.color = glm::vec3(1.0f);
   scene.lights.push_back(light);
 }

@@ -2,6 +2,7 @@
 #include "common/scene/mesh_builder.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <utility>
@@ -30,6 +31,23 @@ std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position) {
   return static_cast<std::uint32_t>(mesh_.positions.size() - 1);
 }
 
+namespace {
+
+/// `n` normalised, or zero ("no normal") for a zero or non-finite one. A length whose square a
+/// float cannot hold (a normal longer than about 1.8e19 or shorter than about 1.1e-19, which the
+/// file formats allow) is taken in double instead of losing the normal.
+glm::vec3 unit_or_zero(const glm::vec3& n) {
+  const float length2 = glm::dot(n, n);
+  if (length2 >= std::numeric_limits<float>::min() && length2 <= std::numeric_limits<float>::max()) {
+    return n / std::sqrt(length2);
+  }
+  const glm::dvec3 d(n);
+  const double length = glm::length(d);
+  return length > 0.0 && std::isfinite(length) ? glm::vec3(d / length) : glm::vec3(0.0f);
+}
+
+}  // namespace
+
 std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position, const glm::vec3& normal) {
   if (mesh_.positions.size() >= std::numeric_limits<std::uint32_t>::max()) {
     throw_at(mesh_.source, 0, "more than 2^32-1 vertices");
@@ -39,8 +57,7 @@ std::uint32_t MeshBuilder::add_vertex(const glm::vec3& position, const glm::vec3
     mesh_.normals.assign(mesh_.positions.size(), glm::vec3(0.0f));
     has_normals_ = true;
   }
-  const float length = glm::length(normal);
-  mesh_.normals.push_back(length > 0.0f ? normal / length : glm::vec3(0.0f));
+  mesh_.normals.push_back(unit_or_zero(normal));
   mesh_.positions.push_back(position);
   return static_cast<std::uint32_t>(mesh_.positions.size() - 1);
 }

@@ -88,7 +88,7 @@ class NffReader {
       } else if (key == "b") {
         glm::vec3 background;
         for (int a = 0; a < 3; ++a) background[a] = cursor_.next_float_on_line("background colour");
-        file_.background = background;
+        file_.background = checked_color(background, "background colour", cursor_.file(), cursor_.line());
       } else {
         cursor_.fail("unknown NFF statement " + quoted(key));
       }
@@ -199,6 +199,7 @@ class NffReader {
     const bool has_color = cursor_.more_on_line();
     if (has_color) {
       for (int a = 0; a < 3; ++a) light.color[a] = cursor_.next_float_on_line("light colour");
+      light.color = checked_color(light.color, "light colour", cursor_.file(), cursor_.line());
     }
     file_.lights.push_back(light);
     light_has_color_.push_back(has_color);

@@ -184,6 +184,15 @@ class Reader {
     return v;
   }
 
+  /// A colour: 3 numbers, none negative (negative colours give negative or NaN pixels).
+  glm::vec3 color(const Json& j, const std::string& path) const {
+    const glm::vec3 out = vec3(j, path);
+    if (out.x < 0.0f || out.y < 0.0f || out.z < 0.0f) {
+      fail(path, fmt::format("colour components must not be negative, got [{}, {}, {}]", out.x, out.y, out.z));
+    }
+    return out;
+  }
+
   const std::string& file() const { return file_; }
 
  private:
@@ -200,9 +209,7 @@ Camera read_camera_fields(const Reader& r, const Json& j, const std::string& pat
       r.fail(child(path, "vfov_deg"), "must be in (0, 180) degrees");
     }
   }
-  if (camera.eye == camera.look_at) r.fail(path, "eye and look_at coincide");
-  const glm::vec3 side = glm::cross(camera.look_at - camera.eye, camera.up);
-  if (!(glm::length(side) > 0.0f)) r.fail(path, "up is zero or parallel to the view direction");
+  if (const std::string problem = camera_problem(camera); !problem.empty()) r.fail(path, problem);
   return camera;
 }
 
@@ -261,16 +268,8 @@ Material read_material(const Reader& r, const Json& j, const std::string& path) 
   Material m;
   m.name = r.string(r.required(j, path, "name"), child(path, "name"));
   if (m.name.empty()) r.fail(child(path, "name"), "must not be empty");
-  // Negative colours would give negative or NaN pixels.
   const auto color = [&](std::string_view key, glm::vec3& out) {
-    const Json* v = r.optional(j, key);
-    if (v == nullptr) return;
-    out = r.vec3(*v, child(path, key));
-    if (out.x < 0.0f || out.y < 0.0f || out.z < 0.0f) {
-      r.fail(child(path, key), fmt::format("colour components must not be negative, got "
-                                           "[{}, {}, {}]",
-                                           out.x, out.y, out.z));
-    }
+    if (const Json* v = r.optional(j, key)) out = r.color(*v, child(path, key));
   };
   color("diffuse", m.diffuse);
   color("specular", m.specular);
@@ -371,11 +370,11 @@ class SceneJsonLoader {
       scene_.height = nff_resolution_->y;
     }
     if (const Json* v = r_.optional(root, "background")) {
-      scene_.background = r_.vec3(*v, "background");
+      scene_.background = r_.color(*v, "background");
     } else if (nff_background_) {
       scene_.background = *nff_background_;
     }
-    if (const Json* v = r_.optional(root, "ambient")) scene_.ambient = r_.vec3(*v, "ambient");
+    if (const Json* v = r_.optional(root, "ambient")) scene_.ambient = r_.color(*v, "ambient");
     if (const Json* v = r_.optional(root, "render")) read_render(*v);
 
     const Json* lights = r_.optional(root, "lights");
@@ -641,7 +640,7 @@ class SceneJsonLoader {
       PointLight light;
       light.position = r_.vec3(r_.required(list[i], path, "position"), child(path, "position"));
       if (const Json* v = r_.optional(list[i], "color"))
-        light.color = r_.vec3(*v, child(path, "color"));
+        light.color = r_.color(*v, child(path, "color"));
       scene_.lights.push_back(light);
     }
   }

@@ -146,6 +146,24 @@ TEST(ReferenceRender, MatchesTheRendererOnTheDefaultScene) {
   EXPECT_LE(e.pct_over_1_255, 0.1);
 }
 
+TEST(ReferenceRender, FarLightsLightAsTheyShould) {
+  // A light 1e20 away, the usual stand-in for a directional light: the direction to it has a
+  // squared length beyond the float range, and the renderer must still light by its direction.
+  Scene scene = default_scene();
+  set_resolution(scene, 96, 72);
+  for (PointLight& l : scene.lights) l.position *= 1e20f;
+  Renderer renderer(scene);
+  const auto state = renderer.prepare(scene.animation.frame_begin);
+  const Image ours = renderer.render_frame(*state);
+  const test::ReferenceTracer ref(state->geometry->positions, state->geometry->triangles);
+  const Image reference = test::reference_render(*state, ref, test::ReferenceOptions{scene.settings.max_depth, scene.settings.min_weight});
+  const test::ImageError e = test::image_error(ours, reference);
+  std::printf("default scene, lights 1e20 out: RMSE %.3e, max %.4f, %.4f%% of pixels over 1/255\n", e.rmse, e.max_abs,
+              e.pct_over_1_255);
+  EXPECT_EQ(e.non_finite, 0u);
+  EXPECT_LE(e.pct_over_1_255, 0.5);
+}
+
 TEST(ImageError, MeasuresDisplayDifferences) {
   Image a(2, 1), b(2, 1);
   for (int x = 0; x < 2; ++x) {

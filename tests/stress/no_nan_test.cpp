@@ -14,6 +14,7 @@
 #include "common/render/renderer.h"
 #include "common/scene/load.h"
 #include "tests/stress/stress_support.h"
+#include "tests/support/reference_render.h"
 
 namespace rtc::stress {
 namespace {
@@ -126,7 +127,11 @@ Scene scaled_default(double scale, const glm::dvec3& offset) {
 
 TEST(StressNoNan, ScenesAtTheEdgesOfFloat) {
   // Coordinates from 1e-30 to 1e30: squared lengths underflow to 0 or overflow to inf in float
-  // (normals, light directions), exactly where a NaN would be born.
+  // (normals, light directions), exactly where a NaN would be born. Every length scaled alike,
+  // the picture must stay the picture at scale 1: a normal or light direction lost to an
+  // overflow or underflow shows as a wrongly lit surface, not as a NaN.
+  const Scene unit_scene = scaled_default(1.0, glm::dvec3(0.0));
+  const Image unit_image = Renderer(unit_scene).render_frame(*build_frame_state(unit_scene, 0, unit_scene.settings, KdBuildOptions{}), 16);
   for (const double scale : {1e-30, 1e-20, 1e18, 1e30}) {  // 1e-4..1e6: self_intersection_test
     const std::string name = "default scene x " + std::to_string(scale);
     Scene s;
@@ -139,6 +144,11 @@ TEST(StressNoNan, ScenesAtTheEdgesOfFloat) {
       continue;
     }
     render_everywhere(s, name, {1, 64});
+    const Image img = Renderer(s).render_frame(*build_frame_state(s, 0, s.settings, KdBuildOptions{}), 16);
+    const test::ImageError e = test::image_error(img, unit_image);
+    std::printf("%s against scale 1: RMSE %.3e, max %.4f, %.2f%% of pixels over 1/255\n", name.c_str(), e.rmse,
+                e.max_abs, e.pct_over_1_255);
+    EXPECT_LE(e.pct_over_1_255, 1.0) << name;
   }
 }
 

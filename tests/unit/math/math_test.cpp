@@ -161,6 +161,37 @@ TEST(Camera, DegenerateCamerasAreErrors) {
   EXPECT_THROW(CameraRays(c, 0, 4), Error);
 }
 
+TEST(Camera, ProblemsAreJudgedInDoubleAndUpByItsDirectionOnly) {
+  Camera c;
+  c.eye = {0, 0, 5};
+  c.look_at = {0, 0, 0};
+  c.up = {0, 1e-13f, 0};  // short, but its direction is plain
+  EXPECT_EQ(camera_problem(c), "");
+  EXPECT_NO_THROW(CameraRays(c, 4, 4));
+  c.up = {0, 0, 0};
+  EXPECT_EQ(camera_problem(c), "up is zero");
+  c.up = {0, 0, -3};
+  EXPECT_EQ(camera_problem(c), "up is parallel to the view direction");
+  // look_at - eye overflows float: fine in double.
+  c.eye = {2e38f, 0, 0};
+  c.look_at = {-2e38f, 0, 0};
+  c.up = {0, 1, 0};
+  EXPECT_EQ(camera_problem(c), "");
+  EXPECT_NO_THROW(CameraRays(c, 4, 4));
+  // An eye 1e-30 from look_at: its squared distance underflows float, not double.
+  c.eye = {1e-30f, 0, 0};
+  c.look_at = {0, 0, 0};
+  EXPECT_EQ(camera_problem(c), "");
+  c.look_at = c.eye;
+  EXPECT_EQ(camera_problem(c), "eye and look_at coincide");
+  c.eye = {std::numeric_limits<float>::infinity(), 0, 0};
+  EXPECT_EQ(camera_problem(c), "eye, look_at and up must be finite");
+  c.eye = {0, 0, 5};
+  c.look_at = {0, 0, 0};
+  c.vfov_deg = 0.0f;
+  EXPECT_NE(camera_problem(c).find("vfov_deg must be in (0, 180)"), std::string::npos);
+}
+
 TEST(RayOffset, ScalesWithTheTriangle) {
   for (float scale : {1e-6f, 1e-3f, 1.0f, 1e3f, 1e6f}) {
     const glm::vec3 p(0.3f * scale, 0.0f, -0.2f * scale);

@@ -519,6 +519,23 @@ TEST(PlyLoader, SkipsOtherElementsAndProperties) {
   EXPECT_EQ(mesh.triangles.size(), 1u);
 }
 
+TEST(ObjLoader, NormalsOfAnyFiniteLengthKeepTheirDirection) {
+  // Squared lengths beyond the float range or below its normal numbers.
+  TempDir dir;
+  const Mesh mesh = load_obj(dir.write("n.obj",
+                                       "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                       "vn 1e20 0 0\nvn 0 1e-25 0\nvn 3e38 0 3e38\n"
+                                       "f 1//1 2//2 3//3\n"))
+                        .mesh;
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  EXPECT_EQ(mesh.normals[mesh.triangles[0].x], glm::vec3(1, 0, 0));
+  EXPECT_EQ(mesh.normals[mesh.triangles[0].y], glm::vec3(0, 1, 0));
+  const glm::vec3 diagonal = mesh.normals[mesh.triangles[0].z];
+  EXPECT_FLOAT_EQ(diagonal.x, 0.70710678f);
+  EXPECT_EQ(diagonal.y, 0.0f);
+  EXPECT_FLOAT_EQ(diagonal.z, 0.70710678f);
+}
+
 // --- glTF -------------------------------------------------------------------------------
 
 TEST(GltfLoader, BakesNodeTransformsAndInstances) {
@@ -549,6 +566,28 @@ TEST(GltfLoader, TexturesAreNotReadAndThatIsSaid) {
   const test::CapturedLog quiet;
   (void)load_gltf(dir.write("plain.gltf", test::small_gltf()));
   EXPECT_EQ(quiet.count("texture"), 0u);
+}
+
+TEST(GltfLoader, RotationsAreUnitQuaternions) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string node = R"({"mesh": 0, "translation": [10, 0, 0]})";
+  ASSERT_NE(gltf.find(node), std::string::npos);
+  // 90 degrees about z, written with length sqrt(2): taken as the unit quaternion (a plain
+  // mat4_cast would also scale and skew), with a warning.
+  gltf.replace(gltf.find(node), node.size(), R"({"mesh": 0, "translation": [10, 0, 0], "rotation": [0, 0, 1, 1]})");
+  const test::CapturedLog log;
+  const Mesh mesh = load_gltf(dir.write("turn.gltf", gltf)).mesh;
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  const glm::vec3 p = mesh.positions[mesh.triangles[0].y];  // (1, 0, 0) before the node's transform
+  EXPECT_NEAR(p.x, 10.0f, 1e-6f);
+  EXPECT_NEAR(p.y, 1.0f, 1e-6f);
+  EXPECT_NEAR(p.z, 0.0f, 1e-6f);
+  EXPECT_EQ(log.count("turn.gltf: node 0: rotation (0, 0, 1, 1) is not a unit quaternion (length 1.41421); normalised"), 1u);
+  gltf.replace(gltf.find("[0, 0, 1, 1]"), 12, "[0, 0, 0, 0]");
+  const std::string message = error_of([&] { (void)load_gltf(dir.write("zero.gltf", gltf)); });
+  EXPECT_NE(message.find("zero.gltf: glTF: node 0: rotation must be a non-zero, finite quaternion"), std::string::npos)
+      << message;
 }
 
 TEST(GltfLoader, PositionsBeyondTheFloatRangeAreRejected) {

@@ -249,6 +249,18 @@ TEST(NffLoader, NegativeFillValuesAreClampedAndOverflowIsRejected) {
       << message;
 }
 
+TEST(NffLoader, NegativeBackgroundAndLightColoursAreClamped) {
+  TempDir dir;
+  const test::CapturedLog log;
+  const MeshFile file = load_nff(dir.write("dark.nff", "b 0.5 -0.25 0\nl 1 2 3 -1 1 1\ns 0 0 0 1\n"));
+  ASSERT_TRUE(file.background.has_value());
+  EXPECT_EQ(*file.background, glm::vec3(0.5f, 0.0f, 0.0f));
+  ASSERT_EQ(file.lights.size(), 1u);
+  EXPECT_EQ(file.lights[0].color, glm::vec3(0.0f, 1.0f, 1.0f));
+  EXPECT_EQ(log.count("dark.nff:1: negative background colour (0.5, -0.25, 0) clamped to 0"), 1u);
+  EXPECT_EQ(log.count("dark.nff:2: negative light colour (-1, 1, 1) clamped to 0"), 1u);
+}
+
 TEST(NffLoader, SpheresAndConesBeyondTheFloatRangeAreRejected) {
   TempDir dir;
   const std::string sphere =

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -371,6 +372,42 @@ TEST(SceneJson, NegativeMaterialColoursAreRejected) {
               HasSubstr("\"materials[0].specular\": colour components must not be negative"));
   EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "materials": [{"name": "a", "emission": [0, 0, -2]}]})"),
               HasSubstr("\"materials[0].emission\": colour components must not be negative"));
+}
+
+TEST(SceneJson, NegativeBackgroundAmbientAndLightColoursAreRejected) {
+  JsonCase c;
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "background": [0, -0.5, 0]})"),
+              HasSubstr("\"background\": colour components must not be negative, got [0, -0.5, 0]"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "ambient": [-1, 0, 0]})"),
+              HasSubstr("\"ambient\": colour components must not be negative"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "lights": [{"position": [1, 1, 1], "color": [1, 1, -1]}]})"),
+              HasSubstr("\"lights[0].color\": colour components must not be negative"));
+}
+
+TEST(SceneJson, CamerasAreJudgedByDirectionsInDouble) {
+  JsonCase c;
+  // A short up is a direction like any other.
+  EXPECT_NO_THROW((void)load_scene(c.write(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1e-13, 0]}})")));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 0, 0]}})"),
+              HasSubstr("\"camera\": up is zero"));
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 0, 2]}})"),
+              HasSubstr("\"camera\": up is parallel to the view direction"));
+  // look_at - eye beyond the float range is a plain view direction.
+  EXPECT_NO_THROW((void)load_scene(c.write(R"({"mesh": "tri.obj", "lights": [], "camera": {"eye": [2e38, 0, 0], "look_at": [-2e38, 0, 0]}})")));
+}
+
+TEST(SceneJson, TheDefaultLightOfAFarCameraIsWhereItShouldBe) {
+  // 2e19 from its target: the squared distance overflows a float.
+  JsonCase c;
+  const Scene scene = load_scene(c.write(R"({"mesh": "tri.obj", "camera": {"eye": [0, 0, 2e19], "look_at": [0, 0, 0]}})"));
+  ASSERT_EQ(scene.lights.size(), 1u);
+  // Above the eye by half the distance, beside it by a quarter: (+-5e18, 1e19, 2e19).
+  const glm::vec3 p = scene.lights[0].position;
+  EXPECT_FLOAT_EQ(std::fabs(p.x), 5e18f);
+  EXPECT_FLOAT_EQ(p.y, 1e19f);
+  EXPECT_FLOAT_EQ(p.z, 2e19f);
+  EXPECT_THAT(c.error(R"({"mesh": "tri.obj", "camera": {"eye": [0, 3e38, 3e38], "look_at": [0, -3e38, -3e38]}})"),
+              HasSubstr("the automatic light would lie outside the float range"));
 }
 
 TEST(SceneJson, TessellationIsChosenPerMeshEntry) {

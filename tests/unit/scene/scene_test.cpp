@@ -452,16 +452,29 @@ TEST(Scene, CheckCamerasFindsTheBadFrameOfALongSpan) {
   EXPECT_EQ(camera_at(scene, 500000000).eye, camera_at(scene, 500000000).look_at);
   EXPECT_EQ(check_cameras_error(scene, 0, 1000000000), "s.json: frame 500000000: camera: eye and look_at coincide");
   EXPECT_EQ(check_cameras_error(scene, 0, 499999990), "");
-  // up swinging from +y to -y through zero at a third of the way.
+  // up swinging from +y to -y through the view direction (-z) at a third of the way.
   Scene turning = test::one_triangle_scene();
   turning.animation.frame_end = 900000000;
   Camera a = turning.camera, b = turning.camera;
   a.eye = b.eye = glm::vec3(0, 0, 5);
   a.look_at = b.look_at = glm::vec3(0.0f);
-  a.up = glm::vec3(0, 1, 0);
-  b.up = glm::vec3(0, -2, 0);
+  a.up = glm::vec3(0, 1, -1);
+  b.up = glm::vec3(0, -2, -1);
   turning.animation.camera = {CameraKey{0, a}, CameraKey{900000000, b}};
   EXPECT_EQ(check_cameras_error(turning, 0, 900000000), "s.json: frame 300000000: camera: up is parallel to the view direction");
+  // up shrinking through zero without lining up with the view: only its direction matters, so
+  // the frames where it is tiny are good; where it is exactly zero, that is the error.
+  Scene shrinking = turning;
+  shrinking.animation.camera[0].camera.up = glm::vec3(0, 1, 0);
+  shrinking.animation.camera[1].camera.up = glm::vec3(0, -2, 0);
+  const float tiny_up = camera_at(shrinking, 300000000).up.y;  // 1 - t - 2t in double, t = 1/3
+  EXPECT_GT(tiny_up, 0.0f);
+  EXPECT_LT(tiny_up, 1e-12f);
+  EXPECT_EQ(check_cameras_error(shrinking, 0, 900000000), "");
+  shrinking.animation.camera[1].camera.up = glm::vec3(0, -1, 0);
+  shrinking.animation.camera[1].frame = 2;
+  EXPECT_EQ(camera_at(shrinking, 1).up, glm::vec3(0.0f));
+  EXPECT_EQ(check_cameras_error(shrinking, 0, 2), "s.json: frame 1: camera: up is zero");
 }
 
 TEST(Scene, FramesOutsideTheAnimationRangeAreNoted) {
