@@ -37,6 +37,11 @@ void FrameWriter::flush() {
   idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
 }
 
+bool FrameWriter::flush_for(std::chrono::milliseconds limit) {
+  std::unique_lock lock(mutex_);
+  return idle_.wait_for(lock, limit, [this] { return queue_.empty() && !busy_; });
+}
+
 std::string FrameWriter::first_error() const {
   std::lock_guard lock(mutex_);
   return first_error_;

@@ -2,6 +2,7 @@
 // image encoding or the disk. Bounded: the master stops opening frames while it is full.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -30,6 +31,8 @@ class FrameWriter {
   [[nodiscard]] std::size_t pending() const;
   /// Blocks until every submitted frame is written (or failed).
   void flush();
+  /// flush() for at most `limit`: true when every submitted frame is written (or failed).
+  [[nodiscard]] bool flush_for(std::chrono::milliseconds limit);
   /// The first failure ("path: reason"), empty when every write succeeded.
   [[nodiscard]] std::string first_error() const;
 

@@ -184,7 +184,12 @@ class Master {
     }
     io_.run();
     if (writer_) {
-      writer_->flush();
+      // The last frames' writes, the late-signal handler still listening (arm_late_signal): a
+      // first signal must not kill the master before they are on disk.
+      while (!writer_->flush_for(std::chrono::milliseconds(100))) {
+        io_.restart();
+        io_.poll();
+      }
       // A write that failed after the loop stopped (the last frames) must still fail the run.
       if (fatal_error_.empty() && !writer_->first_error().empty()) {
         fatal_error_ = "writing frames: " + writer_->first_error();
@@ -359,7 +364,9 @@ class Master {
       Worker* worker = find(id);
       if (worker && worker->state != Worker::State::Ready && worker->state != Worker::State::Scene &&
           worker->state != Worker::State::Closed) {
-        reject(*worker, proto::ErrorCode::AuthFailed,
+        // Timeout, not AuthFailed: a slow peer (a long round trip, a stalled machine) may try
+        // again, where a wrong token makes the worker stop.
+        reject(*worker, proto::ErrorCode::Timeout,
                "did not authenticate within " + std::to_string(options_.auth_timeout_ms) + " ms");
       }
     });
@@ -942,8 +949,11 @@ class Master {
       ++heartbeat_seq_;
       for (auto& [id, w] : workers_) {
         if (w->state == Worker::State::Closed) continue;
-        // A big message on its way (a probe, a large tile) counts as hearing from it.
-        const Clock::time_point heard = std::max(w->last_heard, w->conn->header_arrived());
+        // A big message on its way (a probe, a large tile) counts as hearing from it while its
+        // bytes keep coming: its start alone did, and a 4 MiB probe or a 16 MiB tile on a link
+        // slower than its size over the timeout was dropped mid-message, and probed again on
+        // every reconnection.
+        const Clock::time_point heard = std::max(w->last_heard, w->conn->bytes_arrived());
         if (ms_between(heard, now) > options_.heartbeat_timeout_ms) {
           w->conn->close("missed heartbeats: nothing heard for " + std::to_string(options_.heartbeat_timeout_ms) + " ms");
           continue;
@@ -1006,6 +1016,18 @@ class Master {
     });
   }
 
+  /// After shutdown begins (all frames done, the drain over, a second signal): the goodbyes and
+  /// the last frames' writes still run. A signal then is noted and they finish; a further one
+  /// ends the process the usual way (the default action, restored here).
+  void arm_late_signal() {
+    signals_.async_wait([this](const asio::error_code& e, int s) {
+      if (e) return;
+      spdlog::warn("{}: finishing the goodbyes and the last frames' writes; signal again to stop at once", signal_name(s));
+      asio::error_code ec;
+      signals_.clear(ec);
+    });
+  }
+
   void abandon_open_frames() {
     for (const int sequence : queue_.open_frames()) {
       const auto it = frames_.find(static_cast<std::uint32_t>(sequence));
@@ -1033,7 +1055,7 @@ class Master {
     acceptor_.close(ec);
     remove_ready_file();
     signals_.cancel(ec);
-    signals_.clear(ec);  // a further Ctrl-C during the goodbyes ends the process the usual way
+    arm_late_signal();
     tick_.cancel();
     if (drain_timer_) drain_timer_->cancel();
     if (probe_timer_) probe_timer_->cancel();

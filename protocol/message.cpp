@@ -351,7 +351,7 @@ void get(ByteReader& r, HeartbeatAck& m) {
 }
 void get(ByteReader& r, ErrorMessage& m) {
   const std::uint16_t code = r.u16("code");
-  if (code < static_cast<std::uint16_t>(ErrorCode::Protocol) || code > static_cast<std::uint16_t>(ErrorCode::Internal))
+  if (code < static_cast<std::uint16_t>(ErrorCode::Protocol) || code > static_cast<std::uint16_t>(ErrorCode::Timeout))
     r.fail("code", "unknown error code " + std::to_string(code));
   m.code = static_cast<ErrorCode>(code);
   m.text = r.str(kMaxText, "text");

@@ -137,6 +137,7 @@ enum class ErrorCode : std::uint16_t {
   AuthFailed = 3,    ///< wrong token
   SceneInvalid = 4,  ///< the scene bytes did not decode or hash
   Internal = 5,      ///< the sender failed (e.g. out of memory)
+  Timeout = 6,       ///< a handshake step took too long; the peer may try again
 };
 struct ErrorMessage {
   ErrorCode code = ErrorCode::Protocol;

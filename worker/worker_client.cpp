@@ -450,6 +450,8 @@ class WorkerClient {
     conn_ = std::move(conn);
     welcomed_ = false;
     tiles_outstanding_ = 0;
+    send_cap_ = kDefaultSendCap;
+    conn_->set_max_queued_bytes(send_cap_);
     probes_this_session_ = 0;
     settings_.clear();
     mark_grid_.reset();
@@ -508,7 +510,8 @@ class WorkerClient {
         spdlog::warn("{} has said nothing in 2 s since the connection opened; {}", conn_->peer(), kTlsHint);
       }
       const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
-      if (Clock::now() - std::max(last_heard_, conn_->header_arrived()) > limit) {
+      // A big message on its way (a scene chunk on a slow link) counts while its bytes keep coming.
+      if (Clock::now() - std::max(last_heard_, conn_->bytes_arrived()) > limit) {
         conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
         return;
       }
@@ -670,9 +673,20 @@ class WorkerClient {
                                                           std::to_string(m.height) + " pixels cannot be sent back in one message");
     }
     // The master promised at most max_outstanding tiles at once (Welcome): more is a flood.
-    if (tiles_outstanding_ >= std::max<std::uint32_t>(max_outstanding_, 2)) {
+    const std::uint32_t most = std::max<std::uint32_t>(max_outstanding_, 2);
+    if (tiles_outstanding_ >= most) {
       return fail_session(proto::ErrorCode::Protocol, "more than the " + std::to_string(max_outstanding_) +
                                                           " tiles at once the master announced");
+    }
+    // Each tile the master may hold out can wait in the send queue as a result (with its marks)
+    // while the link is slower than the cores: the queue's limit, which tells a master that
+    // stopped reading, must hold them all (256 MiB closed a healthy connection with 18 float
+    // tiles of 1024x1024 on their way, and the work was thrown away again on every reconnection).
+    const std::size_t per_tile = max_encoded_tile_bytes(raw) + 2 * proto::kHeaderSize + 128 +
+                                 (mark_grid_ ? proto::max_payload(static_cast<std::uint16_t>(proto::MessageType::TileMarks)) : 0);
+    if (const std::size_t needed = most * per_tile + kDefaultSendCap / 16; needed > send_cap_) {
+      send_cap_ = needed;
+      conn_->set_max_queued_bytes(send_cap_);
     }
     ++tiles_outstanding_;
     pool_.push(TileJob{session_, scene_, m, it->second, mark_grid_});
@@ -755,6 +769,10 @@ class WorkerClient {
   int backoff_ms_ = 200;
   std::uint32_t heartbeat_ms_ = 1000;
   std::uint32_t max_outstanding_ = 0;
+  /// The send queue's limit on this connection: the default, raised to hold the results of every
+  /// tile the master may have out (handle(TileAssign)).
+  static constexpr std::size_t kDefaultSendCap = std::size_t{256} << 20;
+  std::size_t send_cap_ = kDefaultSendCap;
   std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
   std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session
   int probes_this_session_ = 0;

@@ -1,6 +1,7 @@
 // Framed rtc protocol connections over Asio TCP.
 #include "protocol/net/connection.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cstring>
 #include <utility>
@@ -143,6 +144,7 @@ void Connection::read_header() {
       return;
     }
     header_arrived_ = std::chrono::steady_clock::now();
+    bytes_arrived_ = header_arrived_;
     const protocol::HeaderResult header = protocol::parse_header(header_buf_);
     if (header.status != protocol::DecodeStatus::Complete) {
       std::uint32_t magic = 0;
@@ -168,10 +170,21 @@ void Connection::read_header() {
 
 void Connection::read_payload(protocol::Header header) {
   payload_.resize(header.payload_length);
+  read_payload_from(header, 0);
+}
+
+void Connection::read_payload_from(protocol::Header header, std::size_t done) {
+  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  const std::size_t part = std::min(kChunk, payload_.size() - done);
   auto self = shared_from_this();
   reading_ = true;
-  auto on_payload = [this, self, header](const asio::error_code& ec, std::size_t) {
+  auto on_payload = [this, self, header, done, part](const asio::error_code& ec, std::size_t) {
     if (!read_returned(ec)) return;
+    if (!ec) bytes_arrived_ = std::chrono::steady_clock::now();
+    if (!ec && done + part < payload_.size()) {
+      read_payload_from(header, done + part);
+      return;
+    }
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +
@@ -190,7 +203,9 @@ void Connection::read_payload(protocol::Header header) {
     on_message_(std::move(result.message), wire);
     read_header();
   };
-  with_stream([&](auto& stream) { asio::async_read(stream, asio::buffer(payload_), std::move(on_payload)); });
+  with_stream([&](auto& stream) {
+    asio::async_read(stream, asio::buffer(payload_.data() + done, part), std::move(on_payload));
+  });
 }
 
 void Connection::send(const protocol::Message& message) {

@@ -108,12 +108,18 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// When the header of the message being handled arrived (link measurements time the payload
   /// from there, leaving out the request's round trip and the sender's preparation).
   [[nodiscard]] std::chrono::steady_clock::time_point header_arrived() const { return header_arrived_; }
+  /// When bytes last arrived: a header, or a part of a payload (read a MiB at a time), so a big
+  /// message on a slow link counts as hearing from the peer while it keeps coming (heartbeat
+  /// timeouts go by this). The epoch before anything arrived.
+  [[nodiscard]] std::chrono::steady_clock::time_point bytes_arrived() const { return bytes_arrived_; }
 
  private:
   /// Sends Error{code, text} to the peer, then closes with `reason`.
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
   void read_header();
   void read_payload(protocol::Header header);
+  /// Reads payload bytes [done, payload_.size()) a chunk at a time, then decodes the message.
+  void read_payload_from(protocol::Header header, std::size_t done);
   /// The start of a message read's callback: false when the callback has nothing more to do,
   /// because the connection is closed or is draining before a close (close_after_flush), which
   /// then takes the read's result.
@@ -153,6 +159,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::string pending_close_reason_;
   std::unique_ptr<asio::steady_timer> flush_timer_;
   std::chrono::steady_clock::time_point header_arrived_{};
+  std::chrono::steady_clock::time_point bytes_arrived_{};
   std::uint64_t bytes_received_ = 0;
   std::uint64_t bytes_sent_ = 0;
 };

@@ -37,7 +37,8 @@ VERSION = 1
 HEADER = struct.Struct("<IHHII")  # magic, version, type, payload length, crc32 of the payload
 MSG_CHALLENGE, MSG_HELLO, MSG_AUTH, MSG_ERROR = 1, 2, 3, 14
 MSG_SCENE_OFFER, MSG_SCENE_REQUEST, MSG_SCENE_READY, MSG_TILE_ASSIGN, MSG_TILE_RESULT = 5, 6, 8, 10, 11
-ERROR_AUTH_FAILED, ERROR_INTERNAL = 3, 5
+ERROR_AUTH_FAILED, ERROR_INTERNAL, ERROR_TIMEOUT = 3, 5, 6
+MSG_PROBE_REQUEST, MSG_PROBE_DATA = 16, 17
 AUTH_CONTEXT = b"rtc-auth-v1"
 
 # Small frames keep a case fast: a worker's first frame builds the kd-trees (~0.2 s), every
@@ -762,9 +763,14 @@ def case_worker_numbers(c):
             send_wrong_proof(s, f"bad{i}")
     with socket.create_connection((host, port), timeout=10) as s:  # silent until the auth timeout
         read_challenge(s)
-        _, closed = read_until_closed(s, 10)
+        data, closed = read_until_closed(s, 10)
     if not closed:
         fail("the master kept a peer that never sent Hello past --auth-timeout")
+    # Timeout, not AuthFailed: a worker told AuthFailed stops for good, and this one's token
+    # was never judged.
+    errors = [p for t, p in parse_messages(data) if t == MSG_ERROR]
+    if not errors or struct.unpack_from("<H", errors[0])[0] != ERROR_TIMEOUT:
+        fail(f"expected Error{{Timeout}} before the auth-timeout close, got {parse_messages(data)}")
     refused = re.findall(r"worker (#\d+) \(bad\d at [^)]*\): authentication failed", master.log())
     if len(refused) != 2:
         fail(f"expected two refusals logged with connection numbers (#N), got {refused}")
@@ -849,6 +855,33 @@ def case_sigint_finishes_cleanly(c):
     ref = c.reference("ref", scene, f"0-{max(drained + abandoned)}", "png")
     c.expect_frames_equal(drained_out, "m", ref, drained, "png")
     c.expect_frames_equal(abandoned_out, "m", ref, abandoned, "png")
+
+
+def case_signal_while_writing(c):
+    """A signal after the last frame is done, while the master still writes it, lets the write
+    finish (one warning), the exit status 0: it used to kill the master with the frame unwritten
+    (the default action was restored as shutdown began). A 2048x2048 float EXR takes the writer
+    about 2 s here (2026-12-02), and the signal follows the 'all frames done' line by ~0.1 s."""
+    out = c.mkdir("run")
+    path = os.path.join(out, "f.exr")
+    master, addr, _ = c.start_master("master", ["--width", "2048", "--height", "2048", "--frames", "0", *WHOLE,
+                                                "--out", path, "--exr-float"])
+    worker = c.start_worker("worker", addr, 2)
+    expect_log(master, r"shutting down: all frames done", "the end of the run", timeout=120, watch=[master])
+    if not master.alive():
+        fail("the master exited before the signal: the frame's write was too quick for this case")
+    master.send(signal.SIGTERM)
+    expect_exit(master, 0, 60, "exit 0 after writing the last frame despite the SIGTERM")
+    expect_log(master, r"SIGTERM: finishing the goodbyes and the last frames' writes; signal again to stop at once",
+               "that the signal waited for the write", timeout=1)
+    expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
+    size = os.path.getsize(path) if os.path.exists(path) else 0
+    if size < 2048 * 2048:
+        fail(f"{path}: {size} bytes, expected the whole frame")
+    leftovers = [n for n in os.listdir(out) if n != "f.exr"]
+    if leftovers:
+        fail(f"files left beside the frame: {leftovers}")
+    print(f"{path}: {size} bytes written after the signal")
 
 
 def case_worker_frozen(c):
@@ -1385,6 +1418,69 @@ class FakeWorker:
         self.sock.close()
 
 
+def case_slow_probe(c):
+    """A worker whose link probe takes longer than --heartbeat-timeout, its bytes arriving all
+    the while, is kept: the master used to count only the start of a message as hearing from a
+    worker, dropped it for missed heartbeats mid-probe and probed it again on every
+    reconnection (a worker on a link slower than 4 MiB per timeout could never render)."""
+    master, addr, _ = c.start_master("master", [*SMALL, *WHOLE, "--frames", "0", "--heartbeat-timeout", "1000"])
+    slow = FakeWorker(addr, "slow")
+    slow.join()
+    got = slow.read_until(MSG_PROBE_REQUEST)
+    size = struct.unpack_from("<I", got[-1][1])[0]
+    payload = struct.pack("<I", size) + bytes(size)
+    data = HEADER.pack(MAGIC, VERSION, MSG_PROBE_DATA, len(payload), zlib.crc32(payload)) + payload
+    # About 2.5 s for the whole message: 2.5 heartbeat timeouts, a piece every 20 ms.
+    pieces = 125
+    step = -(-len(data) // pieces)
+    started = time.monotonic()
+    for i in range(0, len(data), step):
+        try:
+            slow.sock.sendall(data[i:i + step])
+        except OSError as e:
+            fail(f"the master closed the connection {time.monotonic() - started:.1f} s into the probe ({e})")
+        time.sleep(0.02)
+    took = time.monotonic() - started
+    m = expect_log(master, r"link measured on w\d+ \(slow at [^)]*\): ([\d.]+) Mbit/s", "the slow probe's result",
+                   timeout=10, watch=[master])
+    print(f"{size} probe bytes sent in {took:.1f} s; master: {m.group(0)}")
+    if took < 2.0:
+        fail(f"the probe took {took:.1f} s, not longer than the 1 s heartbeat timeout: nothing was tested")
+    if "missed heartbeats" in master.log():
+        fail("the master dropped a worker for missed heartbeats while its probe was arriving")
+    slow.close()
+    worker = c.start_worker("worker", addr, 1)
+    expect_exit(master, 0, 60, "render the frame with a real worker")
+    expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
+
+
+def case_results_pile_up(c):
+    """Results pile up in a worker while its master reads nothing (stopped by SIGSTOP for 6 s,
+    as a slow link would hold them): the 64 tiles of 4 frames, 512x512 in float RGBA, depth
+    and normals, 8 MiB each, 512 MiB in the send queue. The worker keeps them and the connection: its queue's 256 MiB limit, meant to
+    tell a master that stopped reading, used to close it with the work thrown away."""
+    scene = ["--width", "2048", "--height", "2048", "--tile", "512", "--max-depth", "0", *WHOLE]
+    out = c.mkdir("run")
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-3", "--out", os.path.join(out, "f_####.exr"),
+                                                "--exr-float", "--compress", "none",
+                                                "--tiles-per-worker", "64", "--frames-in-flight", "4", "--heartbeat-timeout", "30000",
+                                                "--link-mbps", "1000"])
+    worker = c.start_worker("worker", addr, 2)
+    expect_log(master, r"1 worker ready: rendering frames", "the start of the run", timeout=60, watch=[master])
+    master.send(signal.SIGSTOP)
+    try:
+        time.sleep(6)
+    finally:
+        master.send(signal.SIGCONT)
+    expect_exit(master, 0, 120, "render the 4 frames")
+    expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
+    if sorted(os.listdir(out)) != [f"f_{n:04d}.exr" for n in range(4)]:
+        fail(f"{out} holds {sorted(os.listdir(out))}, expected the 4 frames")
+    for proc, text in ((worker, "is not reading"), (worker, "lost the master"), (master, " left: ")):
+        if text in proc.log():
+            fail(f"{proc.name} logged {text!r}: the connection was closed while results waited to be sent")
+
+
 def case_faults(c):
     """Injected faults against a master that a real worker serves meanwhile: a worker that sends
     garbage in the middle of its tiles, one that sends a result for a tile it was not given, one
@@ -1890,6 +1986,9 @@ CASES = {
     "bad_peers": case_bad_peers,
     "worker_numbers": case_worker_numbers,
     "sigint_finishes_cleanly": case_sigint_finishes_cleanly,
+    "signal_while_writing": case_signal_while_writing,
+    "slow_probe": case_slow_probe,
+    "results_pile_up": case_results_pile_up,
     "worker_frozen": case_worker_frozen,
     "non_loopback_needs_token": case_non_loopback_needs_token,
     "worker_gives_up": case_worker_gives_up,

@@ -236,6 +236,8 @@ std::vector<Vector> vectors() {
                {0x02, 0, 0, 0, 0, 0, 0, 0, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff}});
   v.push_back({"Error", ErrorMessage{ErrorCode::AuthFailed, "bad token"},
                cat({{0x03, 0x00, 0x09, 0, 0, 0}, ascii("bad token")})});
+  v.push_back({"ErrorTimeout", ErrorMessage{ErrorCode::Timeout, "slow"},
+               cat({{0x06, 0x00, 0x04, 0, 0, 0}, ascii("slow")})});
   v.push_back({"Goodbye", Goodbye{"bye"}, {0x03, 0, 0, 0, 'b', 'y', 'e'}});
   v.push_back({"GoodbyeEmpty", Goodbye{""}, {0x00, 0, 0, 0}});
   v.push_back({"ProbeRequest", ProbeRequest{1u << 20}, {0x00, 0x00, 0x10, 0x00}});
@@ -674,7 +676,7 @@ TEST(MessageMalformed, SceneChunkOffsetOverflowIsBad) {
 
 TEST(MessageMalformed, UnknownErrorCodesAreBad) {
   expect_bad(frame(MessageType::Error, {0x00, 0x00, 0, 0, 0, 0}), "Error: code at byte 2: unknown error code 0");
-  expect_bad(frame(MessageType::Error, {0x06, 0x00, 0, 0, 0, 0}), "Error: code at byte 2: unknown error code 6");
+  expect_bad(frame(MessageType::Error, {0x07, 0x00, 0, 0, 0, 0}), "Error: code at byte 2: unknown error code 7");
   for (std::uint16_t code = 1; code <= 5; ++code)
     EXPECT_EQ(decode_bytes(frame(MessageType::Error, {static_cast<std::uint8_t>(code), 0, 0, 0, 0, 0})).status,
               DecodeStatus::Complete);
