@@ -32,11 +32,6 @@ std::size_t FrameWriter::pending() const {
   return queue_.size() + (busy_ ? 1 : 0);
 }
 
-void FrameWriter::flush() {
-  std::unique_lock lock(mutex_);
-  idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
-}
-
 bool FrameWriter::flush_for(std::chrono::milliseconds limit) {
   std::unique_lock lock(mutex_);
   return idle_.wait_for(lock, limit, [this] { return queue_.empty() && !busy_; });

@@ -29,9 +29,8 @@ class FrameWriter {
 
   void submit(std::string path, Image image);
   [[nodiscard]] std::size_t pending() const;
-  /// Blocks until every submitted frame is written (or failed).
-  void flush();
-  /// flush() for at most `limit`: true when every submitted frame is written (or failed).
+  /// Waits at most `limit` for every submitted frame to be written (or to fail): true when they
+  /// all are.
   [[nodiscard]] bool flush_for(std::chrono::milliseconds limit);
   /// The first failure ("path: reason"), empty when every write succeeded.
   [[nodiscard]] std::string first_error() const;

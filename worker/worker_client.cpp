@@ -293,6 +293,12 @@ class WorkerClient {
                   if (session != session_ || !conn_) return;
                   if (tiles_outstanding_ > 0) --tiles_outstanding_;
                   conn_->send_encoded(std::move(m));
+                  if (conn_ && !backlog_noted_ && conn_->queued_bytes() > kDefaultSendCap) {
+                    backlog_noted_ = true;  // once a connection
+                    spdlog::info("{} MiB of results wait to be sent: {} takes them slower than this worker renders "
+                                 "them",
+                                 conn_->queued_bytes() >> 20, conn_->peer());
+                  }
                 });
               },
               [this](std::uint64_t session, std::string error) {
@@ -452,6 +458,7 @@ class WorkerClient {
     tiles_outstanding_ = 0;
     send_cap_ = kDefaultSendCap;
     conn_->set_max_queued_bytes(send_cap_);
+    backlog_noted_ = false;
     probes_this_session_ = 0;
     settings_.clear();
     mark_grid_.reset();
@@ -684,7 +691,7 @@ class WorkerClient {
     // tiles of 1024x1024 on their way, and the work was thrown away again on every reconnection).
     const std::size_t per_tile = max_encoded_tile_bytes(raw) + 2 * proto::kHeaderSize + 128 +
                                  (mark_grid_ ? proto::max_payload(static_cast<std::uint16_t>(proto::MessageType::TileMarks)) : 0);
-    if (const std::size_t needed = most * per_tile + kDefaultSendCap / 16; needed > send_cap_) {
+    if (const std::size_t needed = std::min(most * per_tile + kDefaultSendCap / 16, kMostSendCap); needed > send_cap_) {
       send_cap_ = needed;
       conn_->set_max_queued_bytes(send_cap_);
     }
@@ -772,7 +779,10 @@ class WorkerClient {
   /// The send queue's limit on this connection: the default, raised to hold the results of every
   /// tile the master may have out (handle(TileAssign)).
   static constexpr std::size_t kDefaultSendCap = std::size_t{256} << 20;
+  /// However many tiles a master announces: past this, it is taken as not reading.
+  static constexpr std::size_t kMostSendCap = std::size_t{16} << 30;
   std::size_t send_cap_ = kDefaultSendCap;
+  bool backlog_noted_ = false;  ///< the "results wait to be sent" line was logged on this connection
   std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
   std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session
   int probes_this_session_ = 0;

@@ -12,6 +12,7 @@
 
 #include "common/accel/trace.h"
 #include "common/math/ray_offset.h"
+#include "common/math/unit_vector.h"
 #include "common/render/frame_state.h"
 
 namespace rtc {
@@ -58,23 +59,11 @@ inline bool shadow_ray_parts(const SurfaceSample& s, const PointLight& light, gl
 
 namespace shading_detail {
 
-/// normalize_or for a vector whose squared length a float cannot hold: longer than about
-/// 1.8e19 (it overflows) or shorter than about 1.1e-19 (it underflows or loses bits). In double,
-/// rounded once; `fallback` for zero or non-finite vectors. Rare, so out of line.
-[[gnu::cold, gnu::noinline]] inline glm::vec3 normalize_or_in_double(const glm::vec3& a, const glm::vec3& fallback) {
-  const glm::dvec3 d(a);
-  const double len = glm::length(d);
-  if (!(len > 0.0) || !std::isfinite(len)) return fallback;
-  return glm::vec3(d / len);
-}
-
 /// Normalised, or `fallback` when the length is zero or not finite. A far light (1e20 away, a
 /// directional light's usual stand-in) or a huge or tiny triangle's normal keeps its direction.
 inline glm::vec3 normalize_or(const glm::vec3& a, const glm::vec3& fallback) {
   const float len2 = glm::dot(a, a);
-  if (!(len2 >= std::numeric_limits<float>::min() && len2 <= std::numeric_limits<float>::max())) {
-    return normalize_or_in_double(a, fallback);
-  }
+  if (!normal_float_length2(len2)) return unit_in_double_or(a, fallback);
   return a * (1.0f / std::sqrt(len2));
 }
 
@@ -94,9 +83,7 @@ inline glm::vec3 unit_normal(const glm::vec3& a, const glm::vec3& b, const glm::
   const glm::vec3 e1 = b - a, e2 = c - a;
   const glm::vec3 n = glm::cross(e1, e2);
   const float len2 = glm::dot(n, n);
-  if (!(len2 >= std::numeric_limits<float>::min() && len2 <= std::numeric_limits<float>::max())) {
-    return unit_normal_in_double(e1, e2);
-  }
+  if (!normal_float_length2(len2)) return unit_normal_in_double(e1, e2);
   return n * (1.0f / std::sqrt(len2));
 }
 

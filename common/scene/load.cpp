@@ -12,6 +12,7 @@
 #include "common/base/error.h"
 #include "common/base/log.h"
 #include "common/math/det_math.h"
+#include "common/math/unit_vector.h"
 #include "common/scene/load_internal.h"
 #include "common/scene/mesh_file.h"
 
@@ -68,13 +69,28 @@ void place_auto_camera(Scene& scene) {
 }
 
 void place_default_light(Scene& scene) {
-  // In double, rounded once: a camera far from its target (beyond about 1.8e19, where a float
-  // squared length overflows) still gets a light where it should be.
+  // In float, as always, where that holds the numbers; in double, rounded once, for a camera so
+  // far from its target (beyond about 1.8e19, where a float squared length overflows, or so
+  // near that it underflows) that float would give a NaN light.
+  const glm::vec3 view = scene.camera.eye - scene.camera.look_at;
+  const float distance2 = glm::dot(view, view);
+  if (normal_float_length2(distance2)) {
+    const float distance = glm::length(view);
+    const glm::vec3 up = glm::normalize(scene.camera.up);
+    glm::vec3 side = glm::cross(view, up);
+    const float side_length = glm::length(side);
+    side = side_length > 0.0f ? side / side_length : glm::vec3(1.0f, 0.0f, 0.0f);
+    const glm::vec3 position = scene.camera.eye + 0.5f * distance * up + 0.25f * distance * side;
+    if (std::isfinite(position.x) && std::isfinite(position.y) && std::isfinite(position.z)) {
+      scene.lights.push_back(PointLight{position, glm::vec3(1.0f)});
+      return;
+    }
+  }
   const glm::dvec3 eye(scene.camera.eye);
-  const glm::dvec3 view = eye - glm::dvec3(scene.camera.look_at);
-  const double distance = glm::length(view);
+  const glm::dvec3 dview = eye - glm::dvec3(scene.camera.look_at);
+  const double distance = glm::length(dview);
   const glm::dvec3 up = glm::normalize(glm::dvec3(scene.camera.up));
-  glm::dvec3 side = glm::cross(view, up);
+  glm::dvec3 side = glm::cross(dview, up);
   const double side_length = glm::length(side);
   side = side_length > 0.0 ? side / side_length : glm::dvec3(1.0, 0.0, 0.0);
   const glm::dvec3 position = eye + 0.5 * distance * up + 0.25 * distance * side;
@@ -85,10 +101,7 @@ void place_default_light(Scene& scene) {
                             "{:.3g} from its target); give a light",
                             scene.source.empty() ? scene.name : scene.source.string(), distance));
   }
-  PointLight light;
-  light.position = glm::vec3(position);
-  light.color = glm::vec3(1.0f);
-  scene.lights.push_back(light);
+  scene.lights.push_back(PointLight{glm::vec3(position), glm::vec3(1.0f)});
 }
 
 void frame_automatically(Scene& scene) {

@@ -9,6 +9,7 @@
 
 #include "common/base/error.h"
 #include "common/base/log.h"
+#include "common/math/unit_vector.h"
 
 namespace rtc {
 
@@ -38,12 +39,7 @@ namespace {
 /// file formats allow) is taken in double instead of losing the normal.
 glm::vec3 unit_or_zero(const glm::vec3& n) {
   const float length2 = glm::dot(n, n);
-  if (length2 >= std::numeric_limits<float>::min() && length2 <= std::numeric_limits<float>::max()) {
-    return n / std::sqrt(length2);
-  }
-  const glm::dvec3 d(n);
-  const double length = glm::length(d);
-  return length > 0.0 && std::isfinite(length) ? glm::vec3(d / length) : glm::vec3(0.0f);
+  return normal_float_length2(length2) ? n / std::sqrt(length2) : unit_in_double_or(n, glm::vec3(0.0f));
 }
 
 }  // namespace

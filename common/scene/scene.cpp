@@ -198,7 +198,7 @@ void check_cameras(const Scene& scene, int first, int last, const std::string& s
   // A longer span (the scene format allows a billion frames), segment by segment between keys.
   // There eye, look_at, up and vfov move linearly, so vfov is in range wherever it is at both
   // ends, and a camera goes bad only near the t where the view (look_at - eye, linear in t) is
-  // shortest, or where up is nearest to parallel to it (or zero): those frames, found in closed
+  // shortest, where up is shortest, or where up is nearest to parallel to it: those frames, found in closed
   // form and by a scan, are checked with two frames either side, besides the segment's ends.
   // (rtc-master also gives up on errors every worker reports, should this miss a frame.)
   for (std::size_t k = 0; k + 1 < keys.size(); ++k) {
@@ -221,6 +221,9 @@ void check_cameras(const Scene& scene, int first, int last, const std::string& s
     const glm::dvec3 dv = glm::dvec3(c1.look_at) - glm::dvec3(c1.eye) - v0;
     if (glm::dot(dv, dv) > 0.0) near(std::clamp(-glm::dot(v0, dv) / glm::dot(dv, dv), 0.0, 1.0));
     const glm::dvec3 u0(c0.up), du = glm::dvec3(c1.up) - u0;
+    // Where up is shortest (zero, if it passes through it): the scan below cannot see a zero,
+    // which is a single point of its measure.
+    if (glm::dot(du, du) > 0.0) near(std::clamp(-glm::dot(u0, du) / glm::dot(du, du), 0.0, 1.0));
     // The squared sine of the angle between the view and up at t, which camera_problem requires
     // above zero: small where up lines up with the view; 0 where either is zero.
     const auto sine2 = [&](double t) {

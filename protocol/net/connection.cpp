@@ -174,7 +174,7 @@ void Connection::read_payload(protocol::Header header) {
 }
 
 void Connection::read_payload_from(protocol::Header header, std::size_t done) {
-  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  constexpr std::size_t kChunk = std::size_t{64} << 10;
   const std::size_t part = std::min(kChunk, payload_.size() - done);
   auto self = shared_from_this();
   reading_ = true;

@@ -108,7 +108,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// When the header of the message being handled arrived (link measurements time the payload
   /// from there, leaving out the request's round trip and the sender's preparation).
   [[nodiscard]] std::chrono::steady_clock::time_point header_arrived() const { return header_arrived_; }
-  /// When bytes last arrived: a header, or a part of a payload (read a MiB at a time), so a big
+  /// When bytes last arrived: a header, or a part of a payload (read 64 KiB at a time), so a big
   /// message on a slow link counts as hearing from the peer while it keeps coming (heartbeat
   /// timeouts go by this). The epoch before anything arrived.
   [[nodiscard]] std::chrono::steady_clock::time_point bytes_arrived() const { return bytes_arrived_; }

@@ -1455,27 +1455,36 @@ def case_slow_probe(c):
 
 
 def case_results_pile_up(c):
-    """Results pile up in a worker while its master reads nothing (stopped by SIGSTOP for 6 s,
-    as a slow link would hold them): the 64 tiles of 4 frames, 512x512 in float RGBA, depth
-    and normals, 8 MiB each, 512 MiB in the send queue. The worker keeps them and the connection: its queue's 256 MiB limit, meant to
-    tell a master that stopped reading, used to close it with the work thrown away."""
-    scene = ["--width", "2048", "--height", "2048", "--tile", "512", "--max-depth", "0", *WHOLE]
+    """Results pile up in a worker while its master reads them slower than it renders them (here
+    the master is also stopped by SIGSTOP once every frame is handed out, as a slow link would
+    hold them): up to the 128 tiles of 8 frames, 512x512 in float RGBA, depth and normals, 8 MiB
+    each, 1 GiB. The worker keeps them and the connection: its send queue's 256 MiB limit, meant
+    to tell a master that stopped reading, used to close it with the work thrown away. One
+    triangle, so the tiles render fast; the stop lasts at most 7 s (a worker gives up on a master
+    silent for 10 s), ending as soon as the worker says more than 256 MiB wait."""
+    mesh = c.path("triangle.obj")
+    with open(mesh, "w") as f:
+        f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = [mesh, "--width", "2048", "--height", "2048", "--tile", "512", *WHOLE]
     out = c.mkdir("run")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-3", "--out", os.path.join(out, "f_####.exr"),
-                                                "--exr-float", "--compress", "none",
-                                                "--tiles-per-worker", "64", "--frames-in-flight", "4", "--heartbeat-timeout", "30000",
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-7", "--out", os.path.join(out, "f_####.exr"),
+                                                "--exr-float", "--compress", "none", "--tiles-per-worker", "128",
+                                                "--frames-in-flight", "8", "--heartbeat-timeout", "30000",
                                                 "--link-mbps", "1000"])
-    worker = c.start_worker("worker", addr, 2)
-    expect_log(master, r"1 worker ready: rendering frames", "the start of the run", timeout=60, watch=[master])
+    worker = c.start_worker("worker", addr, 2, ["--log-level", "debug"])
+    # The worker prepares a frame at its first tile: frame 7's means every frame is handed out.
+    expect_log(worker, r"frame 7: ", "a tile of the last frame", timeout=60, watch=[master, worker])
     master.send(signal.SIGSTOP)
     try:
-        time.sleep(6)
+        m = expect_log(worker, r"(\d+) MiB of results wait to be sent", "results piling up past 256 MiB", timeout=7,
+                       watch=[worker])
+        print(f"worker: {m.group(0)}")
     finally:
         master.send(signal.SIGCONT)
-    expect_exit(master, 0, 120, "render the 4 frames")
+    expect_exit(master, 0, 120, "render the 8 frames")
     expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
-    if sorted(os.listdir(out)) != [f"f_{n:04d}.exr" for n in range(4)]:
-        fail(f"{out} holds {sorted(os.listdir(out))}, expected the 4 frames")
+    if sorted(os.listdir(out)) != [f"f_{n:04d}.exr" for n in range(8)]:
+        fail(f"{out} holds {sorted(os.listdir(out))}, expected the 8 frames")
     for proc, text in ((worker, "is not reading"), (worker, "lost the master"), (master, " left: ")):
         if text in proc.log():
             fail(f"{proc.name} logged {text!r}: the connection was closed while results waited to be sent")

@@ -471,6 +471,14 @@ TEST(Scene, CheckCamerasFindsTheBadFrameOfALongSpan) {
   EXPECT_GT(tiny_up, 0.0f);
   EXPECT_LT(tiny_up, 1e-12f);
   EXPECT_EQ(check_cameras_error(shrinking, 0, 900000000), "");
+  // Exactly zero at frame 2e8 of a billion: found without checking every frame.
+  Scene zero_up = shrinking;
+  zero_up.animation.frame_end = 1000000000;
+  zero_up.animation.camera[0].camera.up = glm::vec3(0, 1, 0);
+  zero_up.animation.camera[1] = CameraKey{1000000000, zero_up.animation.camera[1].camera};
+  zero_up.animation.camera[1].camera.up = glm::vec3(0, -4, 0);
+  ASSERT_EQ(camera_at(zero_up, 200000000).up, glm::vec3(0.0f));
+  EXPECT_EQ(check_cameras_error(zero_up, 0, 1000000000), "s.json: frame 200000000: camera: up is zero");
   shrinking.animation.camera[1].camera.up = glm::vec3(0, -1, 0);
   shrinking.animation.camera[1].frame = 2;
   EXPECT_EQ(camera_at(shrinking, 1).up, glm::vec3(0.0f));
