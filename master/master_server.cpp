@@ -192,18 +192,16 @@ class Master {
       }
       io_.restart();
       io_.poll();  // a signal in the last wait is noted too
-    }
-    {
-      // Nothing handles a signal from here on: the default action again.
-      asio::error_code ec;
-      signals_.clear(ec);
-    }
-    if (writer_) {
       // A write that failed after the loop stopped (the last frames) must still fail the run.
       if (fatal_error_.empty() && !writer_->first_error().empty()) {
         fatal_error_ = "writing frames: " + writer_->first_error();
         spdlog::error("{}", fatal_error_);
       }
+    }
+    {
+      // Nothing handles a signal from here on: the default action again.
+      asio::error_code ec;
+      signals_.clear(ec);
     }
     const double total_s = run_started_ && finished_.frames() > 0
                                ? std::chrono::duration<double>(last_complete_ - run_start_).count()

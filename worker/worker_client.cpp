@@ -456,8 +456,7 @@ class WorkerClient {
     conn_ = std::move(conn);
     welcomed_ = false;
     tiles_outstanding_ = 0;
-    send_cap_ = kDefaultSendCap;
-    conn_->set_max_queued_bytes(send_cap_);
+    conn_->set_max_queued_bytes(kDefaultSendCap);
     backlog_noted_ = false;
     probes_this_session_ = 0;
     settings_.clear();
@@ -687,13 +686,14 @@ class WorkerClient {
     }
     // Each tile the master may hold out can wait in the send queue as a result (with its marks)
     // while the link is slower than the cores: the queue's limit, which tells a master that
-    // stopped reading, must hold them all (256 MiB closed a healthy connection with 18 float
-    // tiles of 1024x1024 on their way, and the work was thrown away again on every reconnection).
+    // stopped reading, must hold them all (a fixed 256 MiB closed a healthy connection once more
+    // than 32 float tiles of 512x512 with depth and normals waited, and the work was thrown
+    // away: Cluster.results_pile_up).
     const std::size_t per_tile = max_encoded_tile_bytes(raw) + 2 * proto::kHeaderSize + 128 +
                                  (mark_grid_ ? proto::max_payload(static_cast<std::uint16_t>(proto::MessageType::TileMarks)) : 0);
-    if (const std::size_t needed = std::min(most * per_tile + kDefaultSendCap / 16, kMostSendCap); needed > send_cap_) {
-      send_cap_ = needed;
-      conn_->set_max_queued_bytes(send_cap_);
+    if (const std::size_t needed = std::min(most * per_tile + kDefaultSendCap / 16, kMostSendCap);
+        needed > conn_->max_queued_bytes()) {
+      conn_->set_max_queued_bytes(needed);
     }
     ++tiles_outstanding_;
     pool_.push(TileJob{session_, scene_, m, it->second, mark_grid_});
@@ -776,12 +776,11 @@ class WorkerClient {
   int backoff_ms_ = 200;
   std::uint32_t heartbeat_ms_ = 1000;
   std::uint32_t max_outstanding_ = 0;
-  /// The send queue's limit on this connection: the default, raised to hold the results of every
-  /// tile the master may have out (handle(TileAssign)).
+  /// The send queue's limit on a new connection, raised to hold the results of every tile the
+  /// master may have out (handle(TileAssign)).
   static constexpr std::size_t kDefaultSendCap = std::size_t{256} << 20;
   /// However many tiles a master announces: past this, it is taken as not reading.
   static constexpr std::size_t kMostSendCap = std::size_t{16} << 30;
-  std::size_t send_cap_ = kDefaultSendCap;
   bool backlog_noted_ = false;  ///< the "results wait to be sent" line was logged on this connection
   std::uint32_t tiles_outstanding_ = 0;  // assigned and not yet sent back, this session
   std::shared_ptr<const MarkGrid> mark_grid_;  // from the master's MarkGrid, this session

@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <optional>
 
 #include <glm/glm.hpp>
@@ -70,10 +69,7 @@ inline glm::vec3 normalize_or(const glm::vec3& a, const glm::vec3& fallback) {
 /// unit_normal for a triangle whose normal's squared length a float cannot hold: the cross
 /// product in double. Rare, so out of line.
 [[gnu::cold, gnu::noinline]] inline glm::vec3 unit_normal_in_double(const glm::vec3& e1, const glm::vec3& e2) {
-  const glm::dvec3 n = glm::cross(glm::dvec3(e1), glm::dvec3(e2));
-  const double len = glm::length(n);
-  if (!(len > 0.0) || !std::isfinite(len)) return glm::vec3(0, 0, 1);
-  return glm::vec3(n / len);
+  return unit_rounded_or(glm::cross(glm::dvec3(e1), glm::dvec3(e2)), glm::vec3(0, 0, 1));
 }
 
 /// The unit normal of triangle (a, b, c), or +z for one of zero area. The cross product of

@@ -34,6 +34,19 @@ std::uint32_t append_mesh(Scene& scene, Mesh mesh, const std::vector<Material>& 
   return static_cast<std::uint32_t>(scene.meshes.size() - 1);
 }
 
+namespace {
+
+/// Whether every coordinate of `p` fits a float (a NaN does not).
+bool in_float_range(const glm::dvec3& p) {
+  const double float_max = std::numeric_limits<float>::max();
+  return std::abs(p.x) <= float_max && std::abs(p.y) <= float_max && std::abs(p.z) <= float_max;
+}
+
+/// How the automatic camera's and light's errors name the scene: its file, else its name.
+std::string named(const Scene& scene) { return scene.source.empty() ? scene.name : scene.source.string(); }
+
+}  // namespace
+
 void place_auto_camera(Scene& scene) {
   const Aabb box = scene.bounds();
   glm::dvec3 center(0.0);
@@ -54,12 +67,10 @@ void place_auto_camera(Scene& scene) {
   const double distance = 1.05 * radius / det_sin(half);  // 5 % margin
   const glm::dvec3 direction = glm::normalize(glm::dvec3(0.4, 0.6, 1.0));
   const glm::dvec3 eye = center + distance * direction;
-  const double float_max = std::numeric_limits<float>::max();
-  if (!(std::abs(eye.x) <= float_max && std::abs(eye.y) <= float_max &&
-        std::abs(eye.z) <= float_max)) {
+  if (!in_float_range(eye)) {
     throw Error(fmt::format("{}: the scene is too large for the automatic camera (bounding "
                             "radius {:.3g}); give a camera",
-                            scene.source.empty() ? scene.name : scene.source.string(), radius));
+                            named(scene), radius));
   }
   scene.camera.eye = glm::vec3(eye);
   scene.camera.look_at = glm::vec3(center);
@@ -94,12 +105,10 @@ void place_default_light(Scene& scene) {
   const double side_length = glm::length(side);
   side = side_length > 0.0 ? side / side_length : glm::dvec3(1.0, 0.0, 0.0);
   const glm::dvec3 position = eye + 0.5 * distance * up + 0.25 * distance * side;
-  const double float_max = std::numeric_limits<float>::max();
-  if (!(std::abs(position.x) <= float_max && std::abs(position.y) <= float_max &&
-        std::abs(position.z) <= float_max)) {
+  if (!in_float_range(position)) {
     throw Error(fmt::format("{}: the automatic light would lie outside the float range (the camera is "
                             "{:.3g} from its target); give a light",
-                            scene.source.empty() ? scene.name : scene.source.string(), distance));
+                            named(scene), distance));
   }
   scene.lights.push_back(PointLight{glm::vec3(position), glm::vec3(1.0f)});
 }

@@ -95,6 +95,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// Bytes that may wait in the write queue; beyond that the peer is not reading and the
   /// connection is closed ("PEER is not reading: N MiB queued"). Default 256 MiB.
   void set_max_queued_bytes(std::size_t bytes) { max_queued_bytes_ = bytes; }
+  [[nodiscard]] std::size_t max_queued_bytes() const { return max_queued_bytes_; }
 
   /// Called whenever the write queue becomes empty (e.g. to stream the next scene chunk).
   void set_drained_handler(std::function<void()> on_drained) { on_drained_ = std::move(on_drained); }
