@@ -7,8 +7,9 @@
 
 namespace rtc {
 
-FrameWriter::FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error)
-    : options_(std::move(options)), on_error_(std::move(on_error)), thread_([this] { loop(); }) {}
+FrameWriter::FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error,
+                         ImagePool* pool)
+    : options_(std::move(options)), on_error_(std::move(on_error)), pool_(pool), thread_([this] { loop(); }) {}
 
 FrameWriter::~FrameWriter() {
   {
@@ -57,6 +58,7 @@ void FrameWriter::loop() {
     } catch (const std::exception& e) {
       error = e.what();
     }
+    if (pool_ != nullptr) pool_->give(std::move(image));
     if (!error.empty() && on_error_) on_error_(error);
     lock.lock();
     if (!error.empty() && first_error_.empty()) first_error_ = error;

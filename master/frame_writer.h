@@ -11,14 +11,17 @@
 #include <thread>
 
 #include "common/image/image.h"
+#include "master/image_pool.h"
 
 namespace rtc {
 
 class FrameWriter {
  public:
   /// `on_error` is called (on the writer thread) with "path: reason" when a write fails;
-  /// later frames are still attempted.
-  FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error);
+  /// later frames are still attempted. Each frame's image goes back to `pool` once written
+  /// (or failed) when one is given; the pool must outlive the writer.
+  FrameWriter(ImageWriteOptions options, std::function<void(const std::string&)> on_error,
+              ImagePool* pool = nullptr);
   ~FrameWriter();  ///< writes what is queued, then joins
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
@@ -40,6 +43,7 @@ class FrameWriter {
 
   ImageWriteOptions options_;
   std::function<void(const std::string&)> on_error_;
+  ImagePool* pool_;
   mutable std::mutex mutex_;
   std::condition_variable wake_, idle_;
   std::deque<std::pair<std::string, Image>> queue_;

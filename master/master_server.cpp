@@ -24,6 +24,7 @@
 #include "common/scene/serialize.h"
 #include "master/frame_stats.h"
 #include "master/frame_writer.h"
+#include "master/image_pool.h"
 #include "master/tile_queue.h"
 #include "protocol/auth.h"
 #include "protocol/message.h"
@@ -134,9 +135,10 @@ class Master {
       }
     }
     if (!options_.out_pattern.empty()) {
-      writer_ = std::make_unique<FrameWriter>(options_.write_options, [this](const std::string& error) {
-        asio::post(io_, [this, error] { fatal("writing frames: " + error); });
-      });
+      writer_ = std::make_unique<FrameWriter>(
+          options_.write_options,
+          [this](const std::string& error) { asio::post(io_, [this, error] { fatal("writing frames: " + error); }); },
+          &frame_pool_);
     }
     if (options_.link_mbps > 0) {
       // A given figure is a line rate; the tiles' bytes are TCP payload, ~6% less (measured on
@@ -775,7 +777,8 @@ class Master {
       OpenFrame f;
       f.sequence = next_sequence_++;
       f.frame = next_frame_;
-      f.image = Image(width_, height_, (options_.channels & kChannelDepth) != 0, (options_.channels & kChannelNormal) != 0);
+      f.image = frame_pool_.take_for_overwrite(width_, height_, (options_.channels & kChannelDepth) != 0,
+                                 (options_.channels & kChannelNormal) != 0);
       f.stats.sequence = f.sequence;
       f.stats.frame = f.frame;
       f.stats.wire_format = std::string(wire_format_name(options_.wire));
@@ -924,6 +927,8 @@ class Master {
         const int number = options_.loop_seconds > 0 ? static_cast<int>(sequence) : f.frame;
         f.stats.written = expand_frame_pattern(options_.out_pattern, number, options_.multiple_frames);
         writer_->submit(f.stats.written, std::move(f.image));
+      } else {
+        frame_pool_.give(std::move(f.image));
       }
       finished_.add(f.stats);
       spdlog::info("{}{}", format_frame_line(f.stats), progress_text(now));
@@ -1136,6 +1141,9 @@ class Master {
   int worker_failures_in_a_row_ = 0;
   std::set<std::string> failed_workers_;
   static constexpr int kWorkerFailuresToGiveUp = 8;
+  /// Finished frames' images, for the next frames (declared before the writer, which gives
+  /// them back from its thread).
+  ImagePool frame_pool_{static_cast<std::size_t>(options_.frames_in_flight) + FrameWriter::kMaxPending};
   std::unique_ptr<FrameWriter> writer_;
   std::ofstream stats_file_;
   RunAccumulator finished_;  // every frame written, for the summary

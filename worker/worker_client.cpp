@@ -235,7 +235,7 @@ class RenderPool {
         r.raw_size = static_cast<std::uint32_t>(
             encode_tile_pixels(tile, static_cast<WireFormat>(job.settings.wire_format),
                                static_cast<Compression>(job.settings.compression), job.settings.channels, pixels));
-        r.pixels = pixels;
+        r.pixels = std::move(pixels);  // back after encoding: the thread keeps its buffer
         r.render_us = static_cast<std::uint32_t>(std::min(render_ms * 1000.0, 4e9));
         r.primary_rays = counts.primary;
         r.shadow_rays = counts.shadow;
@@ -254,6 +254,7 @@ class RenderPool {
           proto::encode_to(pm, message);
         }
         proto::encode_to(r, message);
+        pixels = std::move(r.pixels);
         deliver_(job.session, std::move(message));
       } catch (const std::exception& e) {
         fail_(job.session, std::string("rendering tile ") + std::to_string(job.tile.tile) + " of frame " +

@@ -56,12 +56,25 @@ class Fnv1a64 {
 
 }  // namespace
 
-Image::Image(int w, int h, bool with_depth, bool with_normal) : width(w), height(h) {
+Image::Image(int w, int h, bool with_depth, bool with_normal) { reset(w, h, with_depth, with_normal); }
+
+void Image::reset(int w, int h, bool with_depth, bool with_normal) {
   RTC_CHECK(w >= 0 && h >= 0, "image size must not be negative");
+  width = w;
+  height = h;
   const std::size_t pixels = pixel_count(w, h);
+  // assign() keeps the vectors' memory when it is large enough.
   rgba.assign(4 * pixels, 0.0f);
-  if (with_depth) depth.assign(pixels, std::numeric_limits<float>::infinity());
-  if (with_normal) normal.assign(3 * pixels, 0.0f);
+  if (with_depth) {
+    depth.assign(pixels, std::numeric_limits<float>::infinity());
+  } else {
+    depth.clear();
+  }
+  if (with_normal) {
+    normal.assign(3 * pixels, 0.0f);
+  } else {
+    normal.clear();
+  }
 }
 
 float* Image::pixel(int x, int y) {

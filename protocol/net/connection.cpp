@@ -169,19 +169,35 @@ void Connection::read_header() {
 }
 
 void Connection::read_payload(protocol::Header header) {
-  payload_.resize(header.payload_length);
+  payload_size_ = header.payload_length;
+  // A big buffer that only small messages have used for a while (a worker's scene chunks, then
+  // tile assignments) is given back. Not after one: heartbeats and marks come between tiles.
+  if (payload_capacity_ > kKeptPayloadBytes && payload_size_ < payload_capacity_ / 4) {
+    if (++small_payloads_in_a_row_ >= kSmallPayloadsToGiveBack) {
+      payload_.reset();
+      payload_capacity_ = 0;
+      small_payloads_in_a_row_ = 0;
+    }
+  } else {
+    small_payloads_in_a_row_ = 0;
+  }
+  if (payload_capacity_ < payload_size_) {
+    payload_.reset();  // before the new one: never both at once
+    payload_ = std::make_unique_for_overwrite<std::uint8_t[]>(payload_size_);
+    payload_capacity_ = payload_size_;
+  }
   read_payload_from(header, 0);
 }
 
 void Connection::read_payload_from(protocol::Header header, std::size_t done) {
   constexpr std::size_t kChunk = std::size_t{64} << 10;
-  const std::size_t part = std::min(kChunk, payload_.size() - done);
+  const std::size_t part = std::min(kChunk, payload_size_ - done);
   auto self = shared_from_this();
   reading_ = true;
   auto on_payload = [this, self, header, done, part](const asio::error_code& ec, std::size_t) {
     if (!read_returned(ec)) return;
     if (!ec) bytes_arrived_ = std::chrono::steady_clock::now();
-    if (!ec && done + part < payload_.size()) {
+    if (!ec && done + part < payload_size_) {
       read_payload_from(header, done + part);
       return;
     }
@@ -191,20 +207,19 @@ void Connection::read_payload_from(protocol::Header header, std::size_t done) {
              (is_end_of_stream(ec) ? std::string("connection closed") : ec.message()));
       return;
     }
-    protocol::PayloadResult result = protocol::decode_payload(header, payload_);
+    protocol::PayloadResult result =
+        protocol::decode_payload(header, std::span<const std::uint8_t>(payload_.get(), payload_size_));
     if (result.status != protocol::DecodeStatus::Complete) {
       reject("bad message from " + peer_ + ": " + result.error, protocol::ErrorCode::Protocol, result.error);
       return;
     }
     const std::size_t wire = protocol::kHeaderSize + header.payload_length;
     bytes_received_ += wire;
-    // Big payloads (tiles, scene chunks) are not kept around between messages.
-    if (payload_.capacity() > (1u << 20)) std::vector<std::uint8_t>().swap(payload_);
     on_message_(std::move(result.message), wire);
     read_header();
   };
   with_stream([&](auto& stream) {
-    asio::async_read(stream, asio::buffer(payload_.data() + done, part), std::move(on_payload));
+    asio::async_read(stream, asio::buffer(payload_.get() + done, part), std::move(on_payload));
   });
 }
 

@@ -113,13 +113,20 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// message on a slow link counts as hearing from the peer while it keeps coming (heartbeat
   /// timeouts go by this). The epoch before anything arrived.
   [[nodiscard]] std::chrono::steady_clock::time_point bytes_arrived() const { return bytes_arrived_; }
+  /// Bytes held for reading payloads: the largest recent payload's size, kept between messages.
+  [[nodiscard]] std::size_t payload_buffer_bytes() const { return payload_capacity_; }
+
+  /// A payload buffer up to this size is always kept.
+  static constexpr std::size_t kKeptPayloadBytes = std::size_t{1} << 20;
+  /// A larger one is given back after this many messages in a row under a quarter of its size.
+  static constexpr int kSmallPayloadsToGiveBack = 64;
 
  private:
   /// Sends Error{code, text} to the peer, then closes with `reason`.
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
   void read_header();
   void read_payload(protocol::Header header);
-  /// Reads payload bytes [done, payload_.size()) a chunk at a time, then decodes the message.
+  /// Reads payload bytes [done, payload_size_) a chunk at a time, then decodes the message.
   void read_payload_from(protocol::Header header, std::size_t done);
   /// The start of a message read's callback: false when the callback has nothing more to do,
   /// because the connection is closed or is draining before a close (close_after_flush), which
@@ -148,7 +155,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
   CloseHandler on_close_;
   std::function<void()> on_drained_;
   std::array<std::uint8_t, protocol::kHeaderSize> header_buf_{};
-  std::vector<std::uint8_t> payload_;
+  /// The payload being read: not zero-filled, and kept between messages (a fresh 16 MiB buffer
+  /// a tile cost its zero fill and 4096 page faults). One over kKeptPayloadBytes is given back
+  /// after kSmallPayloadsToGiveBack messages in a row under a quarter of its size (protocol.md).
+  std::unique_ptr<std::uint8_t[]> payload_;
+  std::size_t payload_capacity_ = 0;
+  std::size_t payload_size_ = 0;
+  int small_payloads_in_a_row_ = 0;
   std::deque<std::vector<std::uint8_t>> queue_;
   std::size_t queued_bytes_ = 0;
   std::size_t max_queued_bytes_ = 256u << 20;

@@ -5,10 +5,16 @@
 #   link     two network namespaces joined by a veth pair capped with tc tbf (default 100mbit,
 #            both ways): the master in one, the workers in the other; for each scene, size,
 #            wire format and compression, the logged link bound and the achieved frame rate.
+#   tiles    the master's cost per byte by tile size: the embedded scene at SIZE x SIZE (default
+#            2048) in float tiles without reflections, 20 frames, one 2-thread worker on loopback;
+#            per tile size and compression, the frame rate and the master's network-thread CPU
+#            time a frame (RTC_BUILD_DIR=another build's folder compares two builds).
 # Usage (root for `link`):
 #   tests/bench/cluster_bench.sh scaling [SECONDS] [SCENE...]
 #   tests/bench/cluster_bench.sh link [SECONDS] [SCENE...]      (RATE=100mbit WORKERS=2 SIZES="512 1024"
 #                                                                MEASURED_ONLY=1)
+#   tests/bench/cluster_bench.sh tiles                          (SIZE=2048 TILES="32 64 256 1024"
+#                                                                COMPRESS="none lz4" OUT=cluster_tiles)
 # Writes JSON lines to tests/bench/results/cluster_<mode>.jsonl and a table to cluster_<mode>.md,
 # both replaced only when every run succeeded.
 # Every frame is traced whole (--temporal off on both programs): with temporal coherence, on by
@@ -30,7 +36,9 @@ if [ ${#scenes[@]} -eq 0 ]; then
   scenes=("$shared/gltf-samples/view-BoxTextured.json" "$shared/spd-tetra/view.json" "$shared/radiance-office/view.json")
 fi
 for s in "${scenes[@]}"; do [ -f "$s" ] || { echo "cluster_bench: scene $s not found" >&2; exit 1; }; done
-for b in "$master" "$worker" "$render"; do [ -x "$b" ] || { echo "cluster_bench: build $b first" >&2; exit 1; }; done
+needed=("$master" "$worker")
+[ "$mode" = scaling ] && needed+=("$render")
+for b in "${needed[@]}"; do [ -x "$b" ] || { echo "cluster_bench: build $b first" >&2; exit 1; }; done
 results="$root/tests/bench/results"
 mkdir -p "$results"
 work="$(mktemp -d "${TMPDIR:-/tmp}/rtc-cluster-bench.XXXXXX")"
@@ -165,7 +173,21 @@ PY
         --width 512 --height 512 --loop "$seconds" "${token_args[@]}"
     done
     ;;
-  *) echo "cluster_bench: unknown mode $mode (scaling or link)" >&2; exit 2 ;;
+  tiles)
+    size="${SIZE:-2048}"
+    final="$results/${OUT:-cluster_tiles}.jsonl"
+    out="$work/$(basename "$final")"
+    : > "$out"
+    for comp in ${COMPRESS:-none lz4}; do
+      for tile in ${TILES:-32 64 256 1024}; do
+        echo "{\"type\":\"tiles\",\"size\":$size,\"tile\":$tile,\"wire\":\"float\",\"compress\":\"$comp\"}" >> "$out"
+        run_cluster "$out" "" "" 127.0.0.1:0 127.0.0.1 1 2 --width "$size" --height "$size" --tile "$tile" \
+          --max-depth 0 --frames 0-19 --wire float --compress "$comp" --link-mbps 1000
+        echo "tiles: ${size}x$size, $tile-pixel tiles, float+$comp done"
+      done
+    done
+    ;;
+  *) echo "cluster_bench: unknown mode $mode (scaling, link or tiles)" >&2; exit 2 ;;
 esac
 python3 "$root/tests/bench/cluster_summary.py" "$out" > "$work/summary.md"
 mv "$out" "$final"

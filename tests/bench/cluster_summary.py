@@ -7,7 +7,19 @@ import sys
 def main(path):
     rows = [json.loads(line) for line in open(path) if line.strip()]
     out = []
-    if any(r.get("type") == "render" for r in rows):
+    if any(r.get("type") == "tiles" for r in rows):
+        out.append("| size | tile | wire | compress | MB/frame | median fps | master network thread ms/frame | master CPU ms/frame |")
+        out.append("|---:|---:|---|---|---:|---:|---:|---:|")
+        case = None
+        for r in rows:
+            if r["type"] == "tiles":
+                case = r
+            elif r["type"] == "summary" and case:
+                frames = max(r["frames"], 1)
+                out.append(f"| {case['size']} | {case['tile']} | {case['wire']} | {case['compress']} | "
+                           f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['median_fps']:.2f} | "
+                           f"{1e3 * r['master_io_cpu_s'] / frames:.1f} | {1e3 * r['master_process_cpu_s'] / frames:.1f} |")
+    elif any(r.get("type") == "render" for r in rows):
         out.append("| scene | threads = workers | rtc-render fps (render only) | rtc-render fps (incl. PNG write) | cluster median fps | cluster / rtc-render |")
         out.append("|---|---:|---:|---:|---:|---:|")
         render = None

@@ -1456,24 +1456,28 @@ def case_slow_probe(c):
 
 def case_results_pile_up(c):
     """Results pile up in a worker while its master reads them slower than it renders them (here
-    the master is also stopped by SIGSTOP once every frame is handed out, as a slow link would
-    hold them): up to the 128 tiles of 8 frames, 512x512 in float RGBA, depth and normals, 8 MiB
-    each, 1 GiB. The worker keeps them and the connection: its send queue's 256 MiB limit, meant
-    to tell a master that stopped reading, used to close it with the work thrown away. One
-    triangle, so the tiles render fast; the stop lasts at most 7 s (a worker gives up on a master
-    silent for 10 s), ending as soon as the worker says more than 256 MiB wait."""
+    the master is stopped by SIGSTOP, as a slow link would hold them): up to the 128 tiles the
+    worker may hold, 512x512 in float RGBA, depth and normals, 8 MiB each, 1 GiB. The worker keeps
+    them and the connection: its send queue's 256 MiB limit, meant to tell a master that stopped
+    reading, used to close it with the work thrown away. One triangle, so the tiles render fast;
+    the stop lasts at most 7 s (a worker gives up on a master silent for 10 s), ending as soon as
+    the worker says more than 256 MiB wait. 16 frames of 16 tiles, 8 of them in flight: the stop
+    comes at frame 7, when the worker holds 128 tiles and has rendered about half of them. (With
+    8 frames the stop came at the last one: only its 16 tiles were left to pile up, and once the
+    master took tiles as fast as they came, 2026-12-02, the queue never passed 256 MiB.)"""
     mesh = c.path("triangle.obj")
     with open(mesh, "w") as f:
         f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     scene = [mesh, "--width", "2048", "--height", "2048", "--tile", "512", *WHOLE]
     out = c.mkdir("run")
-    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-7", "--out", os.path.join(out, "f_####.exr"),
+    master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out", os.path.join(out, "f_####.exr"),
                                                 "--exr-float", "--compress", "none", "--tiles-per-worker", "128",
                                                 "--frames-in-flight", "8", "--heartbeat-timeout", "30000",
                                                 "--link-mbps", "1000"])
     worker = c.start_worker("worker", addr, 2, ["--log-level", "debug"])
-    # The worker prepares a frame at its first tile: frame 7's means every frame is handed out.
-    expect_log(worker, r"frame 7: ", "a tile of the last frame", timeout=60, watch=[master, worker])
+    # The worker prepares a frame at its first tile: frame 7's means the first 8 frames' 128 tiles
+    # are handed out, and the master hands out another as each result comes.
+    expect_log(worker, r"frame 7: ", "a tile of the eighth frame", timeout=60, watch=[master, worker])
     master.send(signal.SIGSTOP)
     try:
         m = expect_log(worker, r"(\d+) MiB of results wait to be sent", "results piling up past 256 MiB", timeout=7,
@@ -1481,10 +1485,10 @@ def case_results_pile_up(c):
         print(f"worker: {m.group(0)}")
     finally:
         master.send(signal.SIGCONT)
-    expect_exit(master, 0, 120, "render the 8 frames")
+    expect_exit(master, 0, 120, "render the 16 frames")
     expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
-    if sorted(os.listdir(out)) != [f"f_{n:04d}.exr" for n in range(8)]:
-        fail(f"{out} holds {sorted(os.listdir(out))}, expected the 8 frames")
+    if sorted(os.listdir(out)) != [f"f_{n:04d}.exr" for n in range(16)]:
+        fail(f"{out} holds {sorted(os.listdir(out))}, expected the 16 frames")
     for proc, text in ((worker, "is not reading"), (worker, "lost the master"), (master, " left: ")):
         if text in proc.log():
             fail(f"{proc.name} logged {text!r}: the connection was closed while results waited to be sent")

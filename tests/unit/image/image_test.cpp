@@ -695,6 +695,38 @@ TEST(Image, ConstructorFillsTheBackground) {
   EXPECT_FALSE(plain.has_normal());
 }
 
+TEST(Image, ResetIsTheConstructorInTheMemoryItHolds) {
+  Image image(64, 32, true, true);
+  std::fill(image.rgba.begin(), image.rgba.end(), 0.5f);
+  std::fill(image.depth.begin(), image.depth.end(), 2.0f);
+  std::fill(image.normal.begin(), image.normal.end(), -1.0f);
+  const float* rgba = image.rgba.data();
+  const float* depth = image.depth.data();
+  const float* normal = image.normal.data();
+  image.reset(64, 32, true, true);
+  EXPECT_EQ(image.rgba.data(), rgba);  // no new memory for the same size
+  EXPECT_EQ(image.depth.data(), depth);
+  EXPECT_EQ(image.normal.data(), normal);
+  const Image fresh(64, 32, true, true);
+  EXPECT_EQ(image.rgba, fresh.rgba);
+  EXPECT_EQ(image.depth, fresh.depth);
+  EXPECT_EQ(image.normal, fresh.normal);
+
+  // Smaller, without depth and normals: the same as a new one of that shape.
+  image.reset(8, 4);
+  EXPECT_EQ(image.width, 8);
+  EXPECT_EQ(image.height, 4);
+  EXPECT_EQ(image.rgba.data(), rgba);
+  EXPECT_EQ(image.rgba, Image(8, 4).rgba);
+  EXPECT_FALSE(image.has_depth());
+  EXPECT_FALSE(image.has_normal());
+  // Larger than it ever was: new memory, background values.
+  image.reset(128, 64, true, false);
+  EXPECT_EQ(image.rgba, Image(128, 64).rgba);
+  EXPECT_EQ(image.depth, Image(128, 64, true).depth);
+  EXPECT_FALSE(image.has_normal());
+}
+
 TEST(Image, PixelIsRowMajorFromTheTop) {
   Image image(5, 3);
   EXPECT_EQ(image.pixel(0, 0), image.rgba.data());
