@@ -1,7 +1,6 @@
 // Frames' pixel memory used again (see image_pool.h).
 #include "master/image_pool.h"
 
-#include <algorithm>
 #include <utility>
 
 namespace rtc {
@@ -15,11 +14,7 @@ Image ImagePool::take_for_overwrite(int w, int h, bool with_depth, bool with_nor
       kept_.pop_back();
     }
   }
-  const std::size_t pixels = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
-  const bool same_shape = image.width == w && image.height == h && image.rgba.size() == 4 * pixels &&
-                          image.depth.size() == (with_depth ? pixels : 0) &&
-                          image.normal.size() == (with_normal ? 3 * pixels : 0);
-  if (!same_shape) image.reset(w, h, with_depth, with_normal);
+  if (!image.has_shape(w, h, with_depth, with_normal)) image.reset(w, h, with_depth, with_normal);
   return image;
 }
 

@@ -77,6 +77,12 @@ void Image::reset(int w, int h, bool with_depth, bool with_normal) {
   }
 }
 
+bool Image::has_shape(int w, int h, bool with_depth, bool with_normal) const {
+  const std::size_t pixels = pixel_count(std::max(w, 0), std::max(h, 0));
+  return width == w && height == h && rgba.size() == 4 * pixels && depth.size() == (with_depth ? pixels : 0) &&
+         normal.size() == (with_normal ? 3 * pixels : 0);
+}
+
 float* Image::pixel(int x, int y) {
   RTC_DCHECK(x >= 0 && x < width && y >= 0 && y < height, "pixel outside the image");
   return rgba.data() + 4 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +

@@ -39,6 +39,10 @@ struct Image {
            sizeof(float) * (4u + (with_depth ? 1u : 0u) + (with_normal ? 3u : 0u));
   }
 
+  /// Whether this image is what Image(w, h, with_depth, with_normal) makes in size and channels
+  /// (its pixel values aside).
+  [[nodiscard]] bool has_shape(int w, int h, bool with_depth, bool with_normal) const;
+
   [[nodiscard]] bool has_depth() const { return !depth.empty(); }
   [[nodiscard]] bool has_normal() const { return !normal.empty(); }
 

@@ -4,50 +4,45 @@ import json
 import sys
 
 
+def with_cases(rows, *kinds):
+    """Each summary row after a row of every kind in `kinds`, with the latest of each before it."""
+    latest = {}
+    for r in rows:
+        if r["type"] in kinds:
+            latest[r["type"]] = r
+        elif r["type"] == "summary" and len(latest) == len(kinds):
+            yield (*(latest[k] for k in kinds), r)
+
+
 def main(path):
     rows = [json.loads(line) for line in open(path) if line.strip()]
     out = []
     if any(r.get("type") == "tiles" for r in rows):
         out.append("| size | tile | wire | compress | MB/frame | median fps | master network thread ms/frame | master CPU ms/frame |")
         out.append("|---:|---:|---|---|---:|---:|---:|---:|")
-        case = None
-        for r in rows:
-            if r["type"] == "tiles":
-                case = r
-            elif r["type"] == "summary" and case:
-                frames = max(r["frames"], 1)
-                out.append(f"| {case['size']} | {case['tile']} | {case['wire']} | {case['compress']} | "
-                           f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['median_fps']:.2f} | "
-                           f"{1e3 * r['master_io_cpu_s'] / frames:.1f} | {1e3 * r['master_process_cpu_s'] / frames:.1f} |")
+        for case, r in with_cases(rows, "tiles"):
+            frames = max(r["frames"], 1)
+            out.append(f"| {case['size']} | {case['tile']} | {case['wire']} | {case['compress']} | "
+                       f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['median_fps']:.2f} | "
+                       f"{1e3 * r['master_io_cpu_s'] / frames:.1f} | {1e3 * r['master_process_cpu_s'] / frames:.1f} |")
     elif any(r.get("type") == "render" for r in rows):
         out.append("| scene | threads = workers | rtc-render fps (render only) | rtc-render fps (incl. PNG write) | cluster median fps | cluster / rtc-render |")
         out.append("|---|---:|---:|---:|---:|---:|")
-        render = None
-        case = None
-        for r in rows:
-            if r["type"] == "render":
-                render = r
-            elif r["type"] == "cluster":
-                case = r
-            elif r["type"] == "summary" and render and case:
-                ratio = r["median_fps"] / render["median_fps_render_only"] if render["median_fps_render_only"] else 0
-                out.append(f"| {case['scene']} | {case['workers']} | {render['median_fps_render_only']:.2f} | "
-                           f"{render['median_fps_with_write']:.2f} | {r['median_fps']:.2f} | {ratio:.2f} |")
+        for render, case, r in with_cases(rows, "render", "cluster"):
+            ratio = r["median_fps"] / render["median_fps_render_only"] if render["median_fps_render_only"] else 0
+            out.append(f"| {case['scene']} | {case['workers']} | {render['median_fps_render_only']:.2f} | "
+                       f"{render['median_fps_with_write']:.2f} | {r['median_fps']:.2f} | {ratio:.2f} |")
     else:
         out.append("| scene | size | wire | compress | MB/frame | ratio | link | bound fps | achieved fps | achieved / bound |")
         out.append("|---|---:|---|---|---:|---:|---|---:|---:|---:|")
-        case = None
-        for r in rows:
-            if r["type"] == "case":
-                case = r
-            elif r["type"] == "summary" and case:
-                bound = r["median_bound_fps"]
-                link = f"{r['link_mbit_per_s']:.1f} Mbit/s {r['link_source']}"
-                if r.get("link_line_mbit_per_s"):
-                    link = f"{r['link_mbit_per_s']:.1f} of {r['link_line_mbit_per_s']:.1f} Mbit/s {r['link_source']}"
-                out.append(f"| {case['scene']} | {case['size']} | {case['wire']} | {case['compress']} | "
-                           f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['compression_ratio']:.2f} | {link} | "
-                           f"{bound:.2f} | {r['median_fps']:.2f} | {r.get('achieved_vs_bound', r['median_fps'] / bound if bound else 0):.2f} |")
+        for case, r in with_cases(rows, "case"):
+            bound = r["median_bound_fps"]
+            link = f"{r['link_mbit_per_s']:.1f} Mbit/s {r['link_source']}"
+            if r.get("link_line_mbit_per_s"):
+                link = f"{r['link_mbit_per_s']:.1f} of {r['link_line_mbit_per_s']:.1f} Mbit/s {r['link_source']}"
+            out.append(f"| {case['scene']} | {case['size']} | {case['wire']} | {case['compress']} | "
+                       f"{r['median_bytes_per_frame'] / 1e6:.3f} | {r['compression_ratio']:.2f} | {link} | "
+                       f"{bound:.2f} | {r['median_fps']:.2f} | {r.get('achieved_vs_bound', r['median_fps'] / bound if bound else 0):.2f} |")
     print("\n".join(out))
 
 

@@ -720,6 +720,9 @@ TEST(Image, ResetIsTheConstructorInTheMemoryItHolds) {
   EXPECT_EQ(image.rgba, Image(8, 4).rgba);
   EXPECT_FALSE(image.has_depth());
   EXPECT_FALSE(image.has_normal());
+  EXPECT_TRUE(image.has_shape(8, 4, false, false));
+  EXPECT_FALSE(image.has_shape(8, 4, true, false));
+  EXPECT_FALSE(image.has_shape(4, 8, false, false));
   // Larger than it ever was: new memory, background values.
   image.reset(128, 64, true, false);
   EXPECT_EQ(image.rgba, Image(128, 64).rgba);

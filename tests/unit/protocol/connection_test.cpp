@@ -18,19 +18,29 @@ namespace {
 
 namespace proto = rtc::protocol;
 
+/// A connected pair of TCP sockets on 127.0.0.1, both on `io`.
+struct Sockets {
+  asio::ip::tcp::socket client, server;
+};
+
+Sockets socket_pair(asio::io_context& io) {
+  asio::ip::tcp::acceptor acceptor(io, asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
+  Sockets s{asio::ip::tcp::socket(io), asio::ip::tcp::socket(io)};
+  s.client.connect(acceptor.local_endpoint());
+  acceptor.accept(s.server);
+  return s;
+}
+
 /// A connected pair of Connections on 127.0.0.1, both on `io`.
 struct Pair {
   std::shared_ptr<Connection> sender, receiver;
 };
 
 Pair connect_pair(asio::io_context& io) {
-  asio::ip::tcp::acceptor acceptor(io, asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
-  asio::ip::tcp::socket client(io), server(io);
-  client.connect(acceptor.local_endpoint());
-  acceptor.accept(server);
+  Sockets s = socket_pair(io);
   Pair pair;
-  pair.sender = std::make_shared<Connection>(std::move(client), "sender");
-  pair.receiver = std::make_shared<Connection>(std::move(server), "receiver");
+  pair.sender = std::make_shared<Connection>(std::move(s.client), "sender");
+  pair.receiver = std::make_shared<Connection>(std::move(s.server), "receiver");
   return pair;
 }
 
@@ -114,11 +124,9 @@ TEST(Connection, ABadPayloadAfterAGoodOneOfTheSameSizeIsStillCaught) {
   // The kept buffer holds the first message's bytes; the second's CRC must be checked against
   // its own bytes, so a corrupted copy of the same size is refused.
   asio::io_context io;
-  asio::ip::tcp::acceptor acceptor(io, asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
-  asio::ip::tcp::socket client(io), server(io);
-  client.connect(acceptor.local_endpoint());
-  acceptor.accept(server);
-  auto receiver = std::make_shared<Connection>(std::move(server), "peer");
+  Sockets sockets = socket_pair(io);
+  asio::ip::tcp::socket& client = sockets.client;
+  auto receiver = std::make_shared<Connection>(std::move(sockets.server), "peer");
   int messages = 0;
   std::string closed;
   receiver->start([&](proto::Message&&, std::size_t) { ++messages; },
