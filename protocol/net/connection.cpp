@@ -120,7 +120,8 @@ Connection::~Connection() {
 void Connection::start(MessageHandler on_message, CloseHandler on_close) {
   on_message_ = std::move(on_message);
   on_close_ = std::move(on_close);
-  read_header();
+  read_buf_ = std::make_unique_for_overwrite<std::uint8_t[]>(kReadBufferBytes);
+  read_more();
 }
 
 bool Connection::read_returned(const asio::error_code& ec) {
@@ -133,46 +134,120 @@ bool Connection::read_returned(const asio::error_code& ec) {
   return true;
 }
 
-void Connection::read_header() {
-  if (closed_) return;
+void Connection::read_more() {
+  if (closed_ || closing_after_flush_) return;
+  // What is left is part of one message: it moves to the front, so the rest fits after it.
+  if (read_begin_ > 0) {
+    std::memmove(read_buf_.get(), read_buf_.get() + read_begin_, read_end_ - read_begin_);
+    read_end_ -= read_begin_;
+    read_begin_ = 0;
+  }
   auto self = shared_from_this();
   reading_ = true;
-  auto on_header = [this, self](const asio::error_code& ec, std::size_t) {
+  auto on_read = [this, self](const asio::error_code& ec, std::size_t n) {
     if (!read_returned(ec)) return;
+    ++reads_;
     if (ec) {
-      finish(is_end_of_stream(ec) ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
+      const std::size_t held = read_end_ - read_begin_;
+      if (held >= protocol::kHeaderSize) {
+        // Part of a message the header of which was accepted (handle_buffered stops short of
+        // a whole one only then).
+        const protocol::HeaderResult header =
+            protocol::parse_header(std::span<const std::uint8_t, protocol::kHeaderSize>(
+                read_buf_.get() + read_begin_, protocol::kHeaderSize));
+        finish(peer_ + " sent half a " + protocol::type_name(header.header.type) + " message (" +
+               std::to_string(header.header.payload_length) + " payload bytes announced): " +
+               (is_end_of_stream(ec) ? std::string("connection closed") : ec.message()));
+      } else if (held > 0) {
+        finish(peer_ + " sent half a message header (" + std::to_string(held) + " of " +
+               std::to_string(protocol::kHeaderSize) + " bytes): " +
+               (is_end_of_stream(ec) ? std::string("connection closed") : ec.message()));
+      } else {
+        finish(is_end_of_stream(ec) ? peer_ + " closed the connection" : peer_ + ": " + ec.message());
+      }
       return;
     }
-    header_arrived_ = std::chrono::steady_clock::now();
-    bytes_arrived_ = header_arrived_;
-    const protocol::HeaderResult header = protocol::parse_header(header_buf_);
-    if (header.status != protocol::DecodeStatus::Complete) {
-      std::uint32_t magic = 0;
-      std::uint16_t version = 0;
-      std::memcpy(&magic, header_buf_.data(), sizeof magic);
-      std::memcpy(&version, header_buf_.data() + 4, sizeof version);
-      const bool version_mismatch = magic == protocol::kMagic && version != protocol::kVersion;
-      reject("bad message from " + peer_ + ": " + header.error,
-             version_mismatch ? protocol::ErrorCode::Version : protocol::ErrorCode::Protocol, header.error);
-      return;
-    }
-    if (header.header.payload_length > max_payload_) {
-      const std::string why = protocol::type_name(header.header.type) + " payload of " +
-                              std::to_string(header.header.payload_length) + " bytes exceeds the " +
-                              std::to_string(max_payload_) + " allowed at this point";
-      reject("bad message from " + peer_ + ": " + why, protocol::ErrorCode::Protocol, why);
-      return;
-    }
-    read_payload(header.header);
+    read_at_ = std::chrono::steady_clock::now();
+    bytes_arrived_ = read_at_;
+    read_end_ += n;
+    handle_buffered();
   };
-  with_stream([&](auto& stream) { asio::async_read(stream, asio::buffer(header_buf_), std::move(on_header)); });
+  with_stream([&](auto& stream) {
+    stream.async_read_some(asio::buffer(read_buf_.get() + read_end_, kReadBufferBytes - read_end_), std::move(on_read));
+  });
 }
 
-void Connection::read_payload(protocol::Header header) {
-  payload_size_ = header.payload_length;
+bool Connection::accept_header(const protocol::HeaderResult& parsed, const std::uint8_t* bytes) {
+  if (parsed.status != protocol::DecodeStatus::Complete) {
+    std::uint32_t magic = 0;
+    std::uint16_t version = 0;
+    std::memcpy(&magic, bytes, sizeof magic);
+    std::memcpy(&version, bytes + 4, sizeof version);
+    const bool version_mismatch = magic == protocol::kMagic && version != protocol::kVersion;
+    reject("bad message from " + peer_ + ": " + parsed.error,
+           version_mismatch ? protocol::ErrorCode::Version : protocol::ErrorCode::Protocol, parsed.error);
+    return false;
+  }
+  const protocol::Header* header = &parsed.header;
+  if (header->payload_length > max_payload_) {
+    const std::string why = protocol::type_name(header->type) + " payload of " +
+                            std::to_string(header->payload_length) + " bytes exceeds the " +
+                            std::to_string(max_payload_) + " allowed at this point";
+    reject("bad message from " + peer_ + ": " + why, protocol::ErrorCode::Protocol, why);
+    return false;
+  }
+  return true;
+}
+
+void Connection::handle_buffered() {
+  // Checked before every message: a handler may close the connection, start a flush before a
+  // close (nothing more is handled then), or change max_payload_ for the next header.
+  while (!closed_ && !closing_after_flush_) {
+    const std::size_t held = read_end_ - read_begin_;
+    if (held < protocol::kHeaderSize) break;
+    const std::uint8_t* at = read_buf_.get() + read_begin_;
+    const protocol::HeaderResult parsed =
+        protocol::parse_header(std::span<const std::uint8_t, protocol::kHeaderSize>(at, protocol::kHeaderSize));
+    if (!accept_header(parsed, at)) return;
+    if (!header_pending_) header_arrived_ = read_at_;  // not again when the rest of its message comes
+    const std::size_t wire = protocol::kHeaderSize + parsed.header.payload_length;
+    if (wire <= kReadBufferBytes) {
+      if (held < wire) {
+        header_pending_ = true;  // the rest of it comes with the next read
+        break;
+      }
+      header_pending_ = false;
+      read_begin_ += wire;
+      note_payload(parsed.header.payload_length);
+      if (!deliver(parsed.header, std::span<const std::uint8_t>(at + protocol::kHeaderSize, wire - protocol::kHeaderSize))) {
+        return;
+      }
+      continue;
+    }
+    // Too big for the read buffer: the part already here starts the payload buffer, the rest is
+    // read straight into it.
+    header_pending_ = false;
+    payload_size_ = parsed.header.payload_length;
+    note_payload(payload_size_);
+    if (payload_capacity_ < payload_size_) {
+      payload_.reset();  // before the new one: never both at once
+      payload_ = std::make_unique_for_overwrite<std::uint8_t[]>(payload_size_);
+      payload_capacity_ = payload_size_;
+    }
+    const std::size_t here = held - protocol::kHeaderSize;  // < payload_size_, as wire > the buffer
+    std::memcpy(payload_.get(), at + protocol::kHeaderSize, here);
+    read_begin_ = read_end_ = 0;
+    read_payload_from(parsed.header, here);
+    return;
+  }
+  if (read_begin_ == read_end_) read_begin_ = read_end_ = 0;
+  read_more();
+}
+
+void Connection::note_payload(std::size_t size) {
   // A big buffer that only small messages have used for a while (a worker's scene chunks, then
   // tile assignments) is given back. Not after one: heartbeats and marks come between tiles.
-  if (payload_capacity_ > kKeptPayloadBytes && payload_size_ < payload_capacity_ / 4) {
+  if (payload_capacity_ > kKeptPayloadBytes && size < payload_capacity_ / 4) {
     if (++small_payloads_in_a_row_ >= kSmallPayloadsToGiveBack) {
       payload_.reset();
       payload_capacity_ = 0;
@@ -181,42 +256,42 @@ void Connection::read_payload(protocol::Header header) {
   } else {
     small_payloads_in_a_row_ = 0;
   }
-  if (payload_capacity_ < payload_size_) {
-    payload_.reset();  // before the new one: never both at once
-    payload_ = std::make_unique_for_overwrite<std::uint8_t[]>(payload_size_);
-    payload_capacity_ = payload_size_;
+}
+
+bool Connection::deliver(const protocol::Header& header, std::span<const std::uint8_t> payload) {
+  protocol::PayloadResult result = protocol::decode_payload(header, payload);
+  if (result.status != protocol::DecodeStatus::Complete) {
+    reject("bad message from " + peer_ + ": " + result.error, protocol::ErrorCode::Protocol, result.error);
+    return false;
   }
-  read_payload_from(header, 0);
+  const std::size_t wire = protocol::kHeaderSize + header.payload_length;
+  bytes_received_ += wire;
+  on_message_(std::move(result.message), wire);
+  return true;
 }
 
 void Connection::read_payload_from(protocol::Header header, std::size_t done) {
-  constexpr std::size_t kChunk = std::size_t{64} << 10;
-  const std::size_t part = std::min(kChunk, payload_size_ - done);
+  if (done == payload_size_) {
+    if (deliver(header, std::span<const std::uint8_t>(payload_.get(), payload_size_))) read_more();
+    return;
+  }
+  // Up to the next multiple of the chunk: the part that came with the header leaves `done` just
+  // short of one, and reads into the buffer at 64 KiB boundaries after it copy faster (a 1024-pixel
+  // float tile's master took 8% longer with every read 16 bytes short of one).
+  const std::size_t part = std::min(kReadBufferBytes - done % kReadBufferBytes, payload_size_ - done);
   auto self = shared_from_this();
   reading_ = true;
   auto on_payload = [this, self, header, done, part](const asio::error_code& ec, std::size_t) {
     if (!read_returned(ec)) return;
-    if (!ec) bytes_arrived_ = std::chrono::steady_clock::now();
-    if (!ec && done + part < payload_size_) {
-      read_payload_from(header, done + part);
-      return;
-    }
+    ++reads_;
     if (ec) {
       finish(peer_ + " sent half a " + protocol::type_name(header.type) + " message (" +
              std::to_string(header.payload_length) + " payload bytes announced): " +
              (is_end_of_stream(ec) ? std::string("connection closed") : ec.message()));
       return;
     }
-    protocol::PayloadResult result =
-        protocol::decode_payload(header, std::span<const std::uint8_t>(payload_.get(), payload_size_));
-    if (result.status != protocol::DecodeStatus::Complete) {
-      reject("bad message from " + peer_ + ": " + result.error, protocol::ErrorCode::Protocol, result.error);
-      return;
-    }
-    const std::size_t wire = protocol::kHeaderSize + header.payload_length;
-    bytes_received_ += wire;
-    on_message_(std::move(result.message), wire);
-    read_header();
+    bytes_arrived_ = std::chrono::steady_clock::now();
+    read_payload_from(header, done + part);
   };
   with_stream([&](auto& stream) {
     asio::async_read(stream, asio::buffer(payload_.get() + done, part), std::move(on_payload));
@@ -236,7 +311,13 @@ void Connection::send_encoded(std::vector<std::uint8_t> bytes) {
   }
   queued_bytes_ += bytes.size();
   queue_.push_back(std::move(bytes));
-  if (!writing_) write_next();
+  if (!writing_) schedule_write();
+}
+
+void Connection::schedule_write() {
+  writing_ = true;
+  auto self = shared_from_this();
+  asio::post(tcp().get_executor(), [this, self] { write_next(); });
 }
 
 void Connection::write_next() {
@@ -259,6 +340,16 @@ void Connection::write_next() {
     return;
   }
   writing_ = true;
+  // The queue's first messages in one write (one system call while the socket takes them all).
+  std::vector<asio::const_buffer> buffers;
+  std::size_t bytes = 0;
+  for (const std::vector<std::uint8_t>& m : queue_) {
+    if (buffers.size() == kGatherMessages || (!buffers.empty() && bytes + m.size() > kGatherBytes)) break;
+    buffers.emplace_back(asio::buffer(m));
+    bytes += m.size();
+  }
+  writing_count_ = buffers.size();
+  ++writes_;
   auto self = shared_from_this();
   auto on_written = [this, self](const asio::error_code& ec, std::size_t n) {
     if (closed_) return;
@@ -267,11 +358,13 @@ void Connection::write_next() {
       return;
     }
     bytes_sent_ += n;
-    queued_bytes_ -= queue_.front().size();
-    queue_.pop_front();
+    for (std::size_t i = 0; i < writing_count_; ++i) {
+      queued_bytes_ -= queue_.front().size();
+      queue_.pop_front();
+    }
     write_next();
   };
-  with_stream([&](auto& stream) { asio::async_write(stream, asio::buffer(queue_.front()), std::move(on_written)); });
+  with_stream([&](auto& stream) { asio::async_write(stream, buffers, std::move(on_written)); });
 }
 
 void Connection::close(const std::string& reason) { finish(reason); }

@@ -10,6 +10,7 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -109,13 +110,28 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// When the header of the message being handled arrived (link measurements time the payload
   /// from there, leaving out the request's round trip and the sender's preparation).
   [[nodiscard]] std::chrono::steady_clock::time_point header_arrived() const { return header_arrived_; }
-  /// When bytes last arrived: a header, or a part of a payload (read 64 KiB at a time), so a big
-  /// message on a slow link counts as hearing from the peer while it keeps coming (heartbeat
-  /// timeouts go by this). The epoch before anything arrived.
+  /// When bytes last arrived (read up to 64 KiB at a time), so a big message on a slow link
+  /// counts as hearing from the peer while it keeps coming (heartbeat timeouts go by this). The
+  /// epoch before anything arrived.
   [[nodiscard]] std::chrono::steady_clock::time_point bytes_arrived() const { return bytes_arrived_; }
-  /// Bytes held for reading payloads: the largest recent payload's size, kept between messages.
+  /// Bytes held for reading payloads too big for the read buffer: the largest recent such
+  /// payload's size, kept between messages (0 while only smaller messages have come).
   [[nodiscard]] std::size_t payload_buffer_bytes() const { return payload_capacity_; }
+  /// Reads made so far: one per fill of the read buffer (one system call, which may bring many
+  /// messages or part of one), one per chunk of a payload too big for it.
+  [[nodiscard]] std::uint64_t reads() const { return reads_; }
+  /// Writes made so far, each of up to kGatherMessages queued messages (one system call while
+  /// the socket takes them all).
+  [[nodiscard]] std::uint64_t writes() const { return writes_; }
 
+  /// Bytes asked for per read: every message of at most this size (header included) is decoded
+  /// where it lies in the read buffer, so one read can bring many small ones (a worker's tile
+  /// results, a master's tile assignments); a larger payload is read into the payload buffer.
+  static constexpr std::size_t kReadBufferBytes = std::size_t{64} << 10;
+  /// Queued messages sent by one gathered write at most (and kGatherBytes, unless one message
+  /// alone is larger).
+  static constexpr std::size_t kGatherMessages = 64;
+  static constexpr std::size_t kGatherBytes = std::size_t{1} << 20;
   /// A payload buffer up to this size is always kept.
   static constexpr std::size_t kKeptPayloadBytes = std::size_t{1} << 20;
   /// A larger one is given back after this many messages in a row under a quarter of its size.
@@ -124,15 +140,30 @@ class Connection : public std::enable_shared_from_this<Connection> {
  private:
   /// Sends Error{code, text} to the peer, then closes with `reason`.
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
-  void read_header();
-  void read_payload(protocol::Header header);
+  /// Reads what the peer has sent, up to the read buffer's free space, then handles it.
+  void read_more();
+  /// Handles every whole message in the read buffer, in order, until it holds only part of
+  /// one (then reads more), a payload too big for it begins (then reads that into the payload
+  /// buffer), or the connection closes or drains.
+  void handle_buffered();
+  /// Checks a parsed header (`bytes`: its raw bytes); false, with the peer rejected, when it is
+  /// bad or announces more than max_payload_.
+  bool accept_header(const protocol::HeaderResult& parsed, const std::uint8_t* bytes);
+  /// Decodes a payload and hands the message on; false when it was rejected.
+  bool deliver(const protocol::Header& header, std::span<const std::uint8_t> payload);
+  /// Counts a payload toward giving a big payload buffer back (kSmallPayloadsToGiveBack).
+  void note_payload(std::size_t size);
   /// Reads payload bytes [done, payload_size_) a chunk at a time, then decodes the message.
   void read_payload_from(protocol::Header header, std::size_t done);
   /// The start of a message read's callback: false when the callback has nothing more to do,
   /// because the connection is closed or is draining before a close (close_after_flush), which
   /// then takes the read's result.
   bool read_returned(const asio::error_code& ec);
+  /// Starts a gathered write of the queue's first messages, or ends a flush.
   void write_next();
+  /// Schedules write_next after the handler now running, so messages queued by it (and by
+  /// handlers of the same read) leave in one write.
+  void schedule_write();
   void drain();
   void continue_drain(const asio::error_code& ec);
   void finish(const std::string& reason);
@@ -154,7 +185,16 @@ class Connection : public std::enable_shared_from_this<Connection> {
   MessageHandler on_message_;
   CloseHandler on_close_;
   std::function<void()> on_drained_;
-  std::array<std::uint8_t, protocol::kHeaderSize> header_buf_{};
+  std::array<std::uint8_t, protocol::kHeaderSize> header_buf_{};  ///< drain()'s discarded bytes
+  /// Bytes read and not yet handled: [read_begin_, read_end_) of read_buf_ (kReadBufferBytes).
+  std::unique_ptr<std::uint8_t[]> read_buf_;
+  std::size_t read_begin_ = 0;
+  std::size_t read_end_ = 0;
+  std::chrono::steady_clock::time_point read_at_{};  ///< when the last read returned
+  bool header_pending_ = false;  ///< the header at read_begin_ was seen; its message is not all here
+  std::uint64_t reads_ = 0;
+  std::uint64_t writes_ = 0;
+  std::size_t writing_count_ = 0;  ///< queue entries the write under way sends
   /// The payload being read: not zero-filled, and kept between messages (a fresh 16 MiB buffer
   /// a tile cost its zero fill and 4096 page faults). One over kKeptPayloadBytes is given back
   /// after kSmallPayloadsToGiveBack messages in a row under a quarter of its size (protocol.md).
@@ -166,7 +206,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::size_t queued_bytes_ = 0;
   std::size_t max_queued_bytes_ = 256u << 20;
   std::uint32_t max_payload_ = protocol::kMaxPayload;
-  bool writing_ = false;
+  bool writing_ = false;  ///< a write is under way or scheduled (schedule_write)
   bool reading_ = false;  ///< an async read is outstanding
   bool closed_ = false;
   bool closing_after_flush_ = false;

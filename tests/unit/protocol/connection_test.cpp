@@ -1,11 +1,13 @@
 // net::Connection over loopback TCP: messages of every size arrive whole and in order while the
 // connection keeps its payload buffer between messages, and gives a big one back once only
-// small messages have come for a while.
+// small messages have come for a while; many small messages come in few reads and leave in few
+// writes, and a handler's close or limit applies to the messages already read after its own.
 #include "protocol/net/connection.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -77,7 +79,8 @@ TEST(Connection, PayloadsOfEverySizeArriveWholeWhileTheBufferIsKeptAndGivenBack)
     } else {
       small_in_a_row = 0;
     }
-    buffer = std::max(buffer, payload);
+    // A message that fits the read buffer is decoded there; only bigger ones use this buffer.
+    if (proto::kHeaderSize + payload > Connection::kReadBufferBytes) buffer = std::max(buffer, payload);
     expected_buffer.push_back(buffer);
   }
   EXPECT_EQ(expected_buffer[small], big + 4);      // kept through the small messages
@@ -151,6 +154,165 @@ TEST(Connection, ABadPayloadAfterAGoodOneOfTheSameSizeIsStillCaught) {
   writer.join();
   EXPECT_EQ(messages, 1);
   EXPECT_NE(closed.find("bad message from peer"), std::string::npos) << closed;
+}
+
+/// `count` Heartbeats (seq 0, 1, ...) encoded back to back, then `tail` appended.
+std::vector<std::uint8_t> heartbeats(int count, const std::vector<std::uint8_t>& tail = {}) {
+  std::vector<std::uint8_t> bytes;
+  for (int i = 0; i < count; ++i) {
+    proto::Heartbeat hb;
+    hb.seq = static_cast<std::uint64_t>(i);
+    const std::vector<std::uint8_t> m = proto::encode(hb);
+    bytes.insert(bytes.end(), m.begin(), m.end());
+  }
+  bytes.insert(bytes.end(), tail.begin(), tail.end());
+  return bytes;
+}
+
+/// Runs a receiver Connection over `bytes` written to it from a thread (all at once, or one
+/// byte per write with `one_at_a_time`), then the writer closes. `on_message` gets each message
+/// and the receiver; the receiver's close reason is returned.
+std::string receive(const std::vector<std::uint8_t>& bytes, bool one_at_a_time,
+                    const std::function<void(proto::Message&&, Connection&)>& on_message,
+                    std::uint64_t* reads = nullptr) {
+  asio::io_context io;
+  Sockets sockets = socket_pair(io);
+  asio::ip::tcp::socket& client = sockets.client;
+  client.set_option(asio::ip::tcp::no_delay(true));
+  auto receiver = std::make_shared<Connection>(std::move(sockets.server), "peer");
+  std::string closed;
+  receiver->start([&](proto::Message&& m, std::size_t) { on_message(std::move(m), *receiver); },
+                  [&](const std::string& reason) {
+                    closed = reason;
+                    io.stop();
+                  });
+  std::thread writer([&] {
+    asio::error_code ec;
+    if (one_at_a_time) {
+      for (std::size_t i = 0; i < bytes.size() && !ec; ++i) asio::write(client, asio::buffer(&bytes[i], 1), ec);
+    } else {
+      asio::write(client, asio::buffer(bytes), ec);
+    }
+    client.shutdown(asio::ip::tcp::socket::shutdown_send, ec);  // the receiver reads the end of the stream
+  });
+  io.run_for(std::chrono::seconds(30));
+  receiver->close("test over");  // a write still blocked then fails
+  writer.join();
+  if (reads != nullptr) *reads = receiver->reads();
+  return closed;
+}
+
+TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
+  // 3,000 heartbeats (32 bytes each on the wire, 94 KiB), then a probe bigger than the read
+  // buffer that starts in the same read, then more heartbeats after it.
+  proto::ProbeData probe;
+  probe.bytes = pattern(3 * Connection::kReadBufferBytes + 11, 3);
+  std::vector<std::uint8_t> tail = proto::encode(probe);
+  const std::vector<std::uint8_t> after = heartbeats(100);
+  tail.insert(tail.end(), after.begin(), after.end());
+  const int count = 3000;
+  const std::vector<std::uint8_t> bytes = heartbeats(count, tail);
+  for (const bool one_at_a_time : {false, true}) {
+    std::vector<std::uint64_t> seqs;
+    int probes = 0;
+    std::uint64_t reads = 0;
+    const std::string closed = receive(
+        bytes, one_at_a_time,
+        [&](proto::Message&& m, Connection&) {
+          if (auto* hb = std::get_if<proto::Heartbeat>(&m)) seqs.push_back(hb->seq);
+          if (auto* p = std::get_if<proto::ProbeData>(&m)) {
+            EXPECT_EQ(seqs.size(), static_cast<std::size_t>(count)) << "the probe comes after the first heartbeats";
+            EXPECT_TRUE(p->bytes == probe.bytes) << "the probe's bytes differ";
+            ++probes;
+          }
+        },
+        &reads);
+    EXPECT_EQ(closed, "peer closed the connection") << (one_at_a_time ? "one byte a write" : "one write");
+    ASSERT_EQ(seqs.size(), static_cast<std::size_t>(count + 100));
+    for (std::size_t i = 0; i < seqs.size(); ++i) {
+      ASSERT_EQ(seqs[i], i < static_cast<std::size_t>(count) ? i : i - count) << "message " << i;
+    }
+    EXPECT_EQ(probes, 1);
+    // Written at once, 3,100 messages and a 192 KiB payload take a few dozen reads at most
+    // (64 KiB a read while the socket holds that much); one read per message would be 6,202.
+    if (!one_at_a_time) {
+      EXPECT_LT(reads, 200u);
+    }
+  }
+}
+
+TEST(Connection, AHandlersLimitAndFlushApplyToTheMessagesReadAfterItsOwn) {
+  // All in one write, so the receiver holds the later messages when it handles the first.
+  proto::ProbeData probe;
+  probe.bytes = pattern(1000, 5);
+  const std::vector<std::uint8_t> bytes = heartbeats(1, proto::encode(probe));
+  int handled = 0;
+  std::string closed = receive(bytes, false, [&](proto::Message&&, Connection& c) {
+    ++handled;
+    c.set_max_payload(100);  // the probe's 1004 bytes are over it
+  });
+  EXPECT_EQ(handled, 1);
+  EXPECT_NE(closed.find("bad message from peer: ProbeData payload of 1004 bytes exceeds the 100 allowed"),
+            std::string::npos)
+      << closed;
+
+  const std::vector<std::uint8_t> five = heartbeats(5);
+  handled = 0;
+  closed = receive(five, false, [&](proto::Message&&, Connection& c) {
+    if (++handled == 2) c.close_after_flush("done after two");
+  });
+  EXPECT_EQ(handled, 2) << "nothing is handled after a close_after_flush";
+  EXPECT_EQ(closed, "done after two");
+}
+
+TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
+  std::vector<std::uint8_t> bytes = heartbeats(2);
+  bytes.resize(bytes.size() - 22);  // of the second message (16 + 16 bytes) its header's first 10
+  int handled = 0;
+  std::string closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+  EXPECT_EQ(handled, 1);
+  EXPECT_EQ(closed, "peer sent half a message header (10 of 16 bytes): connection closed");
+
+  proto::ProbeData probe;
+  probe.bytes = pattern(100000, 9);
+  for (const std::size_t cut : {std::size_t{20}, std::size_t{70000}}) {  // in the read buffer, past it
+    bytes = proto::encode(probe);
+    bytes.resize(cut);
+    closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+    EXPECT_EQ(closed, "peer sent half a ProbeData message (100004 payload bytes announced): connection closed")
+        << "cut at " << cut;
+  }
+  EXPECT_EQ(handled, 1);
+}
+
+TEST(Connection, MessagesQueuedInOneHandlerLeaveInFewWrites) {
+  asio::io_context io;
+  Pair pair = connect_pair(io);
+  std::vector<std::uint64_t> seqs;
+  pair.receiver->start(
+      [&](proto::Message&& m, std::size_t) {
+        if (auto* hb = std::get_if<proto::Heartbeat>(&m)) seqs.push_back(hb->seq);
+        if (seqs.size() == 1000) io.stop();
+      },
+      [&](const std::string&) { io.stop(); });
+  pair.sender->start([](proto::Message&&, std::size_t) {}, [](const std::string&) {});
+  bool drained = false;
+  pair.sender->set_drained_handler([&] { drained = true; });
+  asio::post(io, [&] {
+    for (int i = 0; i < 1000; ++i) {
+      proto::Heartbeat hb;
+      hb.seq = static_cast<std::uint64_t>(i);
+      pair.sender->send(hb);
+    }
+  });
+  io.run_for(std::chrono::seconds(30));
+  ASSERT_EQ(seqs.size(), 1000u);
+  for (std::size_t i = 0; i < seqs.size(); ++i) ASSERT_EQ(seqs[i], i);
+  // kGatherMessages a write: 16 writes for 1,000 messages, one each before.
+  EXPECT_EQ(pair.sender->writes(), (1000 + Connection::kGatherMessages - 1) / Connection::kGatherMessages);
+  EXPECT_EQ(pair.sender->bytes_sent(), 1000u * (proto::kHeaderSize + 16));
+  EXPECT_EQ(pair.sender->queued_bytes(), 0u);
+  EXPECT_TRUE(drained);
 }
 
 }  // namespace
