@@ -208,8 +208,9 @@ void Connection::handle_buffered() {
     const std::uint8_t* at = read_buf_.get() + read_begin_;
     const protocol::HeaderResult parsed =
         protocol::parse_header(std::span<const std::uint8_t, protocol::kHeaderSize>(at, protocol::kHeaderSize));
-    if (!accept_header(parsed, at)) return;
+    // Before the header is judged: one refused (another version, say) still counts as heard.
     if (!header_pending_) header_arrived_ = read_at_;  // not again when the rest of its message comes
+    if (!accept_header(parsed, at)) return;
     const std::size_t wire = protocol::kHeaderSize + parsed.header.payload_length;
     if (wire <= kReadBufferBytes) {
       if (held < wire) {

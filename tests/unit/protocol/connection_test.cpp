@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <string>
@@ -203,38 +204,50 @@ std::string receive(const std::vector<std::uint8_t>& bytes, bool one_at_a_time,
 }
 
 TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
-  // 3,000 heartbeats (32 bytes each on the wire, 94 KiB), then a probe bigger than the read
-  // buffer that starts in the same read, then more heartbeats after it.
-  proto::ProbeData probe;
-  probe.bytes = pattern(3 * Connection::kReadBufferBytes + 11, 3);
-  std::vector<std::uint8_t> tail = proto::encode(probe);
-  const std::vector<std::uint8_t> after = heartbeats(100);
-  tail.insert(tail.end(), after.begin(), after.end());
-  const int count = 3000;
-  const std::vector<std::uint8_t> bytes = heartbeats(count, tail);
+  // Heartbeats (32 bytes each on the wire), then probes: one bigger than the read buffer that
+  // starts in the same read as the last heartbeats, one exactly the read buffer on the wire and
+  // one a byte more; then more heartbeats. Written at once: 3,000 heartbeats (94 KiB) first.
+  // One byte a write (slow: a system call a byte): 200 heartbeats and the last probe only.
+  const std::size_t exact = Connection::kReadBufferBytes - proto::kHeaderSize - 4;  // ProbeData: 4 + bytes
   for (const bool one_at_a_time : {false, true}) {
+    const int count = one_at_a_time ? 200 : 3000;
+    std::vector<std::size_t> sizes{exact + 1};
+    if (!one_at_a_time) sizes = {3 * Connection::kReadBufferBytes + 11, exact, exact + 1};
+    std::vector<proto::ProbeData> probes(sizes.size());
+    std::vector<std::uint8_t> tail;
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+      probes[i].bytes = pattern(sizes[i], static_cast<std::uint32_t>(3 + i));
+      const std::vector<std::uint8_t> m = proto::encode(probes[i]);
+      tail.insert(tail.end(), m.begin(), m.end());
+    }
+    const std::vector<std::uint8_t> after = heartbeats(100);
+    tail.insert(tail.end(), after.begin(), after.end());
+    const std::vector<std::uint8_t> bytes = heartbeats(count, tail);
+
     std::vector<std::uint64_t> seqs;
-    int probes = 0;
+    std::size_t probes_seen = 0;
     std::uint64_t reads = 0;
     const std::string closed = receive(
         bytes, one_at_a_time,
         [&](proto::Message&& m, Connection&) {
           if (auto* hb = std::get_if<proto::Heartbeat>(&m)) seqs.push_back(hb->seq);
           if (auto* p = std::get_if<proto::ProbeData>(&m)) {
-            EXPECT_EQ(seqs.size(), static_cast<std::size_t>(count)) << "the probe comes after the first heartbeats";
-            EXPECT_TRUE(p->bytes == probe.bytes) << "the probe's bytes differ";
-            ++probes;
+            EXPECT_EQ(seqs.size(), static_cast<std::size_t>(count)) << "the probes come after the first heartbeats";
+            ASSERT_LT(probes_seen, probes.size());
+            EXPECT_TRUE(p->bytes == probes[probes_seen].bytes) << "probe " << probes_seen << "'s bytes differ";
+            ++probes_seen;
           }
         },
         &reads);
-    EXPECT_EQ(closed, "peer closed the connection") << (one_at_a_time ? "one byte a write" : "one write");
-    ASSERT_EQ(seqs.size(), static_cast<std::size_t>(count + 100));
+    const char* how = one_at_a_time ? "one byte a write" : "one write";
+    EXPECT_EQ(closed, "peer closed the connection") << how;
+    ASSERT_EQ(seqs.size(), static_cast<std::size_t>(count + 100)) << how;
     for (std::size_t i = 0; i < seqs.size(); ++i) {
-      ASSERT_EQ(seqs[i], i < static_cast<std::size_t>(count) ? i : i - count) << "message " << i;
+      ASSERT_EQ(seqs[i], i < static_cast<std::size_t>(count) ? i : i - count) << how << ", message " << i;
     }
-    EXPECT_EQ(probes, 1);
-    // Written at once, 3,100 messages and a 192 KiB payload take a few dozen reads at most
-    // (64 KiB a read while the socket holds that much); one read per message would be 6,202.
+    EXPECT_EQ(probes_seen, probes.size()) << how;
+    // Written at once, 3,103 messages and 320 KiB of payloads take a few dozen reads at most
+    // (64 KiB a read while the socket holds that much); one read per message would be 6,208.
     if (!one_at_a_time) {
       EXPECT_LT(reads, 200u);
     }
@@ -273,9 +286,16 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
   EXPECT_EQ(handled, 1);
   EXPECT_EQ(closed, "peer sent half a message header (10 of 16 bytes): connection closed");
 
+  bytes = heartbeats(1);
+  bytes.resize(20);  // a small message's header and 4 of its 16 payload bytes: in the read buffer
+  closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+  EXPECT_EQ(closed, "peer sent half a Heartbeat message (16 payload bytes announced): connection closed");
+
+  // A message bigger than the read buffer, cut in its first read or after it: both are read on
+  // into the payload buffer.
   proto::ProbeData probe;
   probe.bytes = pattern(100000, 9);
-  for (const std::size_t cut : {std::size_t{20}, std::size_t{70000}}) {  // in the read buffer, past it
+  for (const std::size_t cut : {std::size_t{20}, std::size_t{70000}}) {
     bytes = proto::encode(probe);
     bytes.resize(cut);
     closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
@@ -283,6 +303,31 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
         << "cut at " << cut;
   }
   EXPECT_EQ(handled, 1);
+}
+
+TEST(Connection, APeerWhoseFirstHeaderIsRefusedWasStillHeard) {
+  // A worker tells "said nothing" from "said something we refuse" by header_arrived(): a
+  // header of another protocol version must count as heard before it is refused.
+  std::vector<std::uint8_t> bytes = heartbeats(1);
+  const std::uint16_t other = proto::kVersion + 1;
+  std::memcpy(bytes.data() + 4, &other, sizeof other);  // the version follows the 4-byte magic
+
+  asio::io_context io;
+  Sockets sockets = socket_pair(io);
+  auto receiver = std::make_shared<Connection>(std::move(sockets.server), "peer");
+  std::string closed;
+  int handled = 0;
+  receiver->start([&](proto::Message&&, std::size_t) { ++handled; },
+                  [&](const std::string& reason) {
+                    closed = reason;
+                    io.stop();
+                  });
+  asio::write(sockets.client, asio::buffer(bytes));
+  sockets.client.shutdown(asio::ip::tcp::socket::shutdown_send);  // the refusal's drain ends at once
+  io.run_for(std::chrono::seconds(30));
+  EXPECT_EQ(handled, 0);
+  EXPECT_NE(closed.find("bad message from peer"), std::string::npos) << closed;
+  EXPECT_NE(receiver->header_arrived(), std::chrono::steady_clock::time_point{}) << "the refused header was heard";
 }
 
 TEST(Connection, MessagesQueuedInOneHandlerLeaveInFewWrites) {
