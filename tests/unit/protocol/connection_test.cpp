@@ -1,7 +1,8 @@
 // net::Connection over loopback TCP: messages of every size arrive whole and in order while the
 // connection keeps its payload buffer between messages, and gives a big one back once only
 // small messages have come for a while; many small messages come in few reads and leave in few
-// writes, and a handler's close or limit applies to the messages already read after its own.
+// writes, streams of random messages cut at random places arrive whole and in order, and a
+// handler's close or limit applies to the messages already read after its own.
 #include "protocol/net/connection.h"
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -170,10 +172,15 @@ std::vector<std::uint8_t> heartbeats(int count, const std::vector<std::uint8_t>&
   return bytes;
 }
 
-/// Runs a receiver Connection over `bytes` written to it from a thread (all at once, or one
-/// byte per write with `one_at_a_time`), then the writer closes. `on_message` gets each message
-/// and the receiver; the receiver's close reason is returned.
-std::string receive(const std::vector<std::uint8_t>& bytes, bool one_at_a_time,
+/// How receive()'s writer cuts the bytes: all in one write, one byte a write, or (any other
+/// value, the seed) writes of random sizes from 1 byte to 256 KiB, some after a short pause so
+/// that the receiver's reads end at random places.
+constexpr std::uint32_t kAllAtOnce = 0, kOneByte = 1;
+
+/// Runs a receiver Connection over `bytes` written to it from a thread (cut as `writes` says),
+/// then the writer closes. `on_message` gets each message and the receiver; the receiver's close
+/// reason is returned.
+std::string receive(const std::vector<std::uint8_t>& bytes, std::uint32_t writes,
                     const std::function<void(proto::Message&&, Connection&)>& on_message,
                     std::uint64_t* reads = nullptr) {
   asio::io_context io;
@@ -189,8 +196,18 @@ std::string receive(const std::vector<std::uint8_t>& bytes, bool one_at_a_time,
                   });
   std::thread writer([&] {
     asio::error_code ec;
-    if (one_at_a_time) {
+    if (writes == kOneByte) {
       for (std::size_t i = 0; i < bytes.size() && !ec; ++i) asio::write(client, asio::buffer(&bytes[i], 1), ec);
+    } else if (writes != kAllAtOnce) {
+      std::mt19937 rng(writes);
+      for (std::size_t at = 0; at < bytes.size() && !ec;) {
+        // Sizes spread over every scale: 1 byte to 256 KiB, as often small as large.
+        const std::size_t scale = std::size_t{1} << std::uniform_int_distribution<int>(0, 18)(rng);
+        const std::size_t n = std::min(bytes.size() - at, std::uniform_int_distribution<std::size_t>(1, scale)(rng));
+        asio::write(client, asio::buffer(&bytes[at], n), ec);
+        at += n;
+        if (rng() % 8 == 0) std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
     } else {
       asio::write(client, asio::buffer(bytes), ec);
     }
@@ -209,7 +226,8 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
   // one a byte more; then more heartbeats. Written at once: 3,000 heartbeats (94 KiB) first.
   // One byte a write (slow: a system call a byte): 200 heartbeats and the last probe only.
   const std::size_t exact = Connection::kReadBufferBytes - proto::kHeaderSize - 4;  // ProbeData: 4 + bytes
-  for (const bool one_at_a_time : {false, true}) {
+  for (const std::uint32_t writes : {kAllAtOnce, kOneByte}) {
+    const bool one_at_a_time = writes == kOneByte;
     const int count = one_at_a_time ? 200 : 3000;
     std::vector<std::size_t> sizes{exact + 1};
     if (!one_at_a_time) sizes = {3 * Connection::kReadBufferBytes + 11, exact, exact + 1};
@@ -228,7 +246,7 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
     std::size_t probes_seen = 0;
     std::uint64_t reads = 0;
     const std::string closed = receive(
-        bytes, one_at_a_time,
+        bytes, writes,
         [&](proto::Message&& m, Connection&) {
           if (auto* hb = std::get_if<proto::Heartbeat>(&m)) seqs.push_back(hb->seq);
           if (auto* p = std::get_if<proto::ProbeData>(&m)) {
@@ -254,13 +272,102 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
   }
 }
 
+/// `count` messages of random kinds and sizes: heartbeats, small probes, probes within 64 bytes
+/// of the read buffer's size either way, and probes up to 5 read buffers long.
+std::vector<proto::Message> random_messages(std::uint32_t seed, int count) {
+  std::mt19937 rng(seed);
+  std::vector<proto::Message> messages;
+  for (int i = 0; i < count; ++i) {
+    const unsigned kind = rng() % 8;
+    if (kind < 3) {
+      proto::Heartbeat hb;
+      hb.seq = static_cast<std::uint64_t>(i);
+      hb.sent_us = rng();
+      messages.emplace_back(hb);
+      continue;
+    }
+    std::size_t size = 0;
+    const std::size_t edge = Connection::kReadBufferBytes - proto::kHeaderSize - 4;  // 64 KiB on the wire
+    if (kind < 5) size = rng() % 200;
+    else if (kind < 7) size = edge - 64 + rng() % 129;
+    else size = rng() % (5 * Connection::kReadBufferBytes);
+    proto::ProbeData probe;
+    probe.bytes = pattern(size, seed * 1000u + static_cast<std::uint32_t>(i));
+    messages.emplace_back(std::move(probe));
+  }
+  return messages;
+}
+
+TEST(Connection, RandomStreamsCutAnywhereArriveWholeAndInOrder) {
+  // Seeded, so a failure names the seed that shows it again. Per seed: 150 messages (about 4 MB),
+  // written in pieces of random sizes with random pauses, so that reads end in headers, in
+  // payloads, on the read buffer's edge and past it.
+  for (std::uint32_t seed = 2; seed < 14; ++seed) {
+    const std::vector<proto::Message> sent = random_messages(seed, 150);
+    std::vector<std::uint8_t> bytes;
+    for (const proto::Message& m : sent) {
+      const std::vector<std::uint8_t> e = proto::encode(m);
+      bytes.insert(bytes.end(), e.begin(), e.end());
+    }
+    std::size_t got = 0;
+    bool same = true;
+    const std::string closed = receive(bytes, seed, [&](proto::Message&& m, Connection&) {
+      if (got < sent.size() && same && proto::encode(m) != proto::encode(sent[got])) {
+        ADD_FAILURE() << "seed " << seed << ": message " << got << " differs";
+        same = false;
+      }
+      ++got;
+    });
+    EXPECT_EQ(closed, "peer closed the connection") << "seed " << seed;
+    EXPECT_EQ(got, sent.size()) << "seed " << seed;
+  }
+}
+
+TEST(Connection, RandomMessagesQueuedInBurstsLeaveWholeAndInOrder) {
+  // The sender's side: bursts of random messages (some over the 1 MiB a gathered write takes)
+  // queued from handlers, gathered into writes, received by another Connection.
+  for (std::uint32_t seed = 20; seed < 26; ++seed) {
+    const std::vector<proto::Message> sent = random_messages(seed, 200);
+    asio::io_context io;
+    Pair pair = connect_pair(io);
+    std::size_t got = 0;
+    bool same = true;
+    std::string closed;
+    pair.receiver->start(
+        [&](proto::Message&& m, std::size_t) {
+          if (got < sent.size() && same && proto::encode(m) != proto::encode(sent[got])) {
+            ADD_FAILURE() << "seed " << seed << ": message " << got << " differs";
+            same = false;
+          }
+          if (++got == sent.size()) io.stop();
+        },
+        [&](const std::string& reason) {
+          closed = reason;
+          io.stop();
+        });
+    pair.sender->start([](proto::Message&&, std::size_t) {}, [](const std::string&) {});
+    std::mt19937 rng(seed);
+    std::size_t queued = 0;
+    while (queued < sent.size()) {
+      const std::size_t burst = std::min(sent.size() - queued, std::size_t{1} + rng() % 100);
+      asio::post(io, [&, queued, burst] {
+        for (std::size_t i = queued; i < queued + burst; ++i) pair.sender->send(sent[i]);
+      });
+      queued += burst;
+    }
+    io.run_for(std::chrono::seconds(30));
+    EXPECT_EQ(got, sent.size()) << "seed " << seed << (closed.empty() ? "" : ": closed: " + closed);
+    EXPECT_EQ(pair.sender->queued_bytes(), 0u) << "seed " << seed;
+  }
+}
+
 TEST(Connection, AHandlersLimitAndFlushApplyToTheMessagesReadAfterItsOwn) {
   // All in one write, so the receiver holds the later messages when it handles the first.
   proto::ProbeData probe;
   probe.bytes = pattern(1000, 5);
   const std::vector<std::uint8_t> bytes = heartbeats(1, proto::encode(probe));
   int handled = 0;
-  std::string closed = receive(bytes, false, [&](proto::Message&&, Connection& c) {
+  std::string closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection& c) {
     ++handled;
     c.set_max_payload(100);  // the probe's 1004 bytes are over it
   });
@@ -271,7 +378,7 @@ TEST(Connection, AHandlersLimitAndFlushApplyToTheMessagesReadAfterItsOwn) {
 
   const std::vector<std::uint8_t> five = heartbeats(5);
   handled = 0;
-  closed = receive(five, false, [&](proto::Message&&, Connection& c) {
+  closed = receive(five, kAllAtOnce, [&](proto::Message&&, Connection& c) {
     if (++handled == 2) c.close_after_flush("done after two");
   });
   EXPECT_EQ(handled, 2) << "nothing is handled after a close_after_flush";
@@ -282,13 +389,13 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
   std::vector<std::uint8_t> bytes = heartbeats(2);
   bytes.resize(bytes.size() - 22);  // of the second message (16 + 16 bytes) its header's first 10
   int handled = 0;
-  std::string closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+  std::string closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
   EXPECT_EQ(handled, 1);
   EXPECT_EQ(closed, "peer sent half a message header (10 of 16 bytes): connection closed");
 
   bytes = heartbeats(1);
   bytes.resize(20);  // a small message's header and 4 of its 16 payload bytes: in the read buffer
-  closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+  closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
   EXPECT_EQ(closed, "peer sent half a Heartbeat message (16 payload bytes announced): connection closed");
 
   // A message bigger than the read buffer, cut in its first read or after it: both are read on
@@ -298,7 +405,7 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
   for (const std::size_t cut : {std::size_t{20}, std::size_t{70000}}) {
     bytes = proto::encode(probe);
     bytes.resize(cut);
-    closed = receive(bytes, false, [&](proto::Message&&, Connection&) { ++handled; });
+    closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
     EXPECT_EQ(closed, "peer sent half a ProbeData message (100004 payload bytes announced): connection closed")
         << "cut at " << cut;
   }
