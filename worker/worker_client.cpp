@@ -514,7 +514,9 @@ class WorkerClient {
       if (ec || !conn_) return;
       if (nothing_heard() && !tls_ && !silence_noted_ && Clock::now() - connected_at_ >= std::chrono::seconds(2)) {
         silence_noted_ = true;  // once a run: the close says it again
-        spdlog::warn("{} has said nothing in 2 s since the connection opened; {}", conn_->peer(), kTlsHint);
+        // An rtc master speaks first, at once; a stopped or swamped one says nothing either.
+        spdlog::warn("{} has said nothing in 2 s since the connection opened: it may be stopped or busy, or {}",
+                     conn_->peer(), kTlsHint);
       }
       const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
       // A big message on its way (a scene chunk on a slow link) counts while its bytes keep coming.
