@@ -177,21 +177,26 @@ std::vector<std::uint8_t> heartbeats(int count, const std::vector<std::uint8_t>&
 /// that the receiver's reads end at random places.
 constexpr std::uint32_t kAllAtOnce = 0, kOneByte = 1;
 
+/// What receive()'s receiver saw.
+struct Received {
+  std::string closed;       ///< its close reason
+  std::uint64_t reads = 0;  ///< Connection::reads()
+  bool heard = false;       ///< a header arrived (Connection::header_arrived() was set)
+};
+
 /// Runs a receiver Connection over `bytes` written to it from a thread (cut as `writes` says),
-/// then the writer closes. `on_message` gets each message and the receiver; the receiver's close
-/// reason is returned.
-std::string receive(const std::vector<std::uint8_t>& bytes, std::uint32_t writes,
-                    const std::function<void(proto::Message&&, Connection&)>& on_message,
-                    std::uint64_t* reads = nullptr) {
+/// then the writer closes. `on_message` gets each message and the receiver.
+Received receive(const std::vector<std::uint8_t>& bytes, std::uint32_t writes,
+                 const std::function<void(proto::Message&&, Connection&)>& on_message) {
   asio::io_context io;
   Sockets sockets = socket_pair(io);
   asio::ip::tcp::socket& client = sockets.client;
   client.set_option(asio::ip::tcp::no_delay(true));
   auto receiver = std::make_shared<Connection>(std::move(sockets.server), "peer");
-  std::string closed;
+  Received received;
   receiver->start([&](proto::Message&& m, std::size_t) { on_message(std::move(m), *receiver); },
                   [&](const std::string& reason) {
-                    closed = reason;
+                    received.closed = reason;
                     io.stop();
                   });
   std::thread writer([&] {
@@ -216,9 +221,26 @@ std::string receive(const std::vector<std::uint8_t>& bytes, std::uint32_t writes
   io.run_for(std::chrono::seconds(30));
   receiver->close("test over");  // a write still blocked then fails
   writer.join();
-  if (reads != nullptr) *reads = receiver->reads();
-  return closed;
+  received.reads = receiver->reads();
+  received.heard = receiver->header_arrived() != std::chrono::steady_clock::time_point{};
+  return received;
 }
+
+/// Checks messages as they arrive against `sent`, in order; the first that differs is reported.
+struct InOrder {
+  const std::vector<proto::Message>& sent;
+  std::uint32_t seed;
+  std::size_t got = 0;
+  bool same = true;
+
+  void take(const proto::Message& m) {
+    if (got < sent.size() && same && proto::encode(m) != proto::encode(sent[got])) {
+      ADD_FAILURE() << "seed " << seed << ": message " << got << " differs";
+      same = false;
+    }
+    ++got;
+  }
+};
 
 TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
   // Heartbeats (32 bytes each on the wire), then probes: one bigger than the read buffer that
@@ -244,8 +266,7 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
 
     std::vector<std::uint64_t> seqs;
     std::size_t probes_seen = 0;
-    std::uint64_t reads = 0;
-    const std::string closed = receive(
+    const Received received = receive(
         bytes, writes,
         [&](proto::Message&& m, Connection&) {
           if (auto* hb = std::get_if<proto::Heartbeat>(&m)) seqs.push_back(hb->seq);
@@ -255,10 +276,9 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
             EXPECT_TRUE(p->bytes == probes[probes_seen].bytes) << "probe " << probes_seen << "'s bytes differ";
             ++probes_seen;
           }
-        },
-        &reads);
+        });
     const char* how = one_at_a_time ? "one byte a write" : "one write";
-    EXPECT_EQ(closed, "peer closed the connection") << how;
+    EXPECT_EQ(received.closed, "peer closed the connection") << how;
     ASSERT_EQ(seqs.size(), static_cast<std::size_t>(count + 100)) << how;
     for (std::size_t i = 0; i < seqs.size(); ++i) {
       ASSERT_EQ(seqs[i], i < static_cast<std::size_t>(count) ? i : i - count) << how << ", message " << i;
@@ -267,7 +287,7 @@ TEST(Connection, ManySmallMessagesComeInFewReadsWholeAndInOrder) {
     // Written at once, 3,103 messages and 320 KiB of payloads take a few dozen reads at most
     // (64 KiB a read while the socket holds that much); two reads a message (header, payload) would be 6,206.
     if (!one_at_a_time) {
-      EXPECT_LT(reads, 200u);
+      EXPECT_LT(received.reads, 200u);
     }
   }
 }
@@ -309,17 +329,10 @@ TEST(Connection, RandomStreamsCutAnywhereArriveWholeAndInOrder) {
       const std::vector<std::uint8_t> e = proto::encode(m);
       bytes.insert(bytes.end(), e.begin(), e.end());
     }
-    std::size_t got = 0;
-    bool same = true;
-    const std::string closed = receive(bytes, seed, [&](proto::Message&& m, Connection&) {
-      if (got < sent.size() && same && proto::encode(m) != proto::encode(sent[got])) {
-        ADD_FAILURE() << "seed " << seed << ": message " << got << " differs";
-        same = false;
-      }
-      ++got;
-    });
-    EXPECT_EQ(closed, "peer closed the connection") << "seed " << seed;
-    EXPECT_EQ(got, sent.size()) << "seed " << seed;
+    InOrder check{sent, seed};
+    const Received received = receive(bytes, seed, [&](proto::Message&& m, Connection&) { check.take(m); });
+    EXPECT_EQ(received.closed, "peer closed the connection") << "seed " << seed;
+    EXPECT_EQ(check.got, sent.size()) << "seed " << seed;
   }
 }
 
@@ -330,16 +343,12 @@ TEST(Connection, RandomMessagesQueuedInBurstsLeaveWholeAndInOrder) {
     const std::vector<proto::Message> sent = random_messages(seed, 200);
     asio::io_context io;
     Pair pair = connect_pair(io);
-    std::size_t got = 0;
-    bool same = true;
+    InOrder check{sent, seed};
     std::string closed;
     pair.receiver->start(
         [&](proto::Message&& m, std::size_t) {
-          if (got < sent.size() && same && proto::encode(m) != proto::encode(sent[got])) {
-            ADD_FAILURE() << "seed " << seed << ": message " << got << " differs";
-            same = false;
-          }
-          if (++got == sent.size()) io.stop();
+          check.take(m);
+          if (check.got == sent.size()) io.stop();
         },
         [&](const std::string& reason) {
           closed = reason;
@@ -356,7 +365,7 @@ TEST(Connection, RandomMessagesQueuedInBurstsLeaveWholeAndInOrder) {
       queued += burst;
     }
     io.run_for(std::chrono::seconds(30));
-    EXPECT_EQ(got, sent.size()) << "seed " << seed << (closed.empty() ? "" : ": closed: " + closed);
+    EXPECT_EQ(check.got, sent.size()) << "seed " << seed << (closed.empty() ? "" : ": closed: " + closed);
     EXPECT_EQ(pair.sender->queued_bytes(), 0u) << "seed " << seed;
   }
 }
@@ -370,7 +379,7 @@ TEST(Connection, AHandlersLimitAndFlushApplyToTheMessagesReadAfterItsOwn) {
   std::string closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection& c) {
     ++handled;
     c.set_max_payload(100);  // the probe's 1004 bytes are over it
-  });
+  }).closed;
   EXPECT_EQ(handled, 1);
   EXPECT_NE(closed.find("bad message from peer: ProbeData payload of 1004 bytes exceeds the 100 allowed"),
             std::string::npos)
@@ -380,7 +389,7 @@ TEST(Connection, AHandlersLimitAndFlushApplyToTheMessagesReadAfterItsOwn) {
   handled = 0;
   closed = receive(five, kAllAtOnce, [&](proto::Message&&, Connection& c) {
     if (++handled == 2) c.close_after_flush("done after two");
-  });
+  }).closed;
   EXPECT_EQ(handled, 2) << "nothing is handled after a close_after_flush";
   EXPECT_EQ(closed, "done after two");
 }
@@ -389,13 +398,13 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
   std::vector<std::uint8_t> bytes = heartbeats(2);
   bytes.resize(bytes.size() - 22);  // of the second message (16 + 16 bytes) its header's first 10
   int handled = 0;
-  std::string closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
+  std::string closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; }).closed;
   EXPECT_EQ(handled, 1);
   EXPECT_EQ(closed, "peer sent half a message header (10 of 16 bytes): connection closed");
 
   bytes = heartbeats(1);
   bytes.resize(20);  // a small message's header and 4 of its 16 payload bytes: in the read buffer
-  closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
+  closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; }).closed;
   EXPECT_EQ(closed, "peer sent half a Heartbeat message (16 payload bytes announced): connection closed");
 
   // A message bigger than the read buffer, cut in its first read or after it: both are read on
@@ -405,7 +414,7 @@ TEST(Connection, AStreamEndingInsideAHeaderOrAPayloadIsNamed) {
   for (const std::size_t cut : {std::size_t{20}, std::size_t{70000}}) {
     bytes = proto::encode(probe);
     bytes.resize(cut);
-    closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
+    closed = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; }).closed;
     EXPECT_EQ(closed, "peer sent half a ProbeData message (100004 payload bytes announced): connection closed")
         << "cut at " << cut;
   }
@@ -418,23 +427,11 @@ TEST(Connection, APeerWhoseFirstHeaderIsRefusedWasStillHeard) {
   std::vector<std::uint8_t> bytes = heartbeats(1);
   const std::uint16_t other = proto::kVersion + 1;
   std::memcpy(bytes.data() + 4, &other, sizeof other);  // the version follows the 4-byte magic
-
-  asio::io_context io;
-  Sockets sockets = socket_pair(io);
-  auto receiver = std::make_shared<Connection>(std::move(sockets.server), "peer");
-  std::string closed;
   int handled = 0;
-  receiver->start([&](proto::Message&&, std::size_t) { ++handled; },
-                  [&](const std::string& reason) {
-                    closed = reason;
-                    io.stop();
-                  });
-  asio::write(sockets.client, asio::buffer(bytes));
-  sockets.client.shutdown(asio::ip::tcp::socket::shutdown_send);  // the refusal's drain ends at once
-  io.run_for(std::chrono::seconds(30));
+  const Received received = receive(bytes, kAllAtOnce, [&](proto::Message&&, Connection&) { ++handled; });
   EXPECT_EQ(handled, 0);
-  EXPECT_NE(closed.find("bad message from peer"), std::string::npos) << closed;
-  EXPECT_NE(receiver->header_arrived(), std::chrono::steady_clock::time_point{}) << "the refused header was heard";
+  EXPECT_NE(received.closed.find("bad message from peer"), std::string::npos) << received.closed;
+  EXPECT_TRUE(received.heard) << "the refused header was heard";
 }
 
 TEST(Connection, MessagesQueuedInOneHandlerLeaveInFewWrites) {
