@@ -9,12 +9,18 @@
 #            2048) in float tiles without reflections, 20 frames, one 2-thread worker on loopback;
 #            per tile size and compression, the frame rate and the master's network-thread CPU
 #            time a frame (RTC_BUILD_DIR=another build's folder compares two builds).
+#   write    the master writing its frames: the embedded scene at SIZE x SIZE (default 2048) in
+#            512-pixel float tiles without reflections, 16 frames, 8 in flight, one 2-thread
+#            worker on loopback, written as EXR float with depth and normals, EXR half and PNG;
+#            per format the whole run's time and the master's CPU time a frame (RTC_BUILD_DIR as
+#            for tiles).
 # Usage (root for `link`):
 #   tests/bench/cluster_bench.sh scaling [SECONDS] [SCENE...]
 #   tests/bench/cluster_bench.sh link [SECONDS] [SCENE...]      (RATE=100mbit WORKERS=2 SIZES="512 1024"
 #                                                                MEASURED_ONLY=1)
 #   tests/bench/cluster_bench.sh tiles                          (SIZE=2048 TILES="32 64 256 1024"
 #                                                                COMPRESS="none lz4" OUT=cluster_tiles)
+#   tests/bench/cluster_bench.sh write                          (SIZE=2048 OUT=cluster_write)
 # Writes JSON lines to tests/bench/results/cluster_<mode>.jsonl and a table to cluster_<mode>.md,
 # both replaced only when every run succeeded.
 # Every frame is traced whole (--temporal off on both programs): with temporal coherence, on by
@@ -187,7 +193,26 @@ PY
       done
     done
     ;;
-  *) echo "cluster_bench: unknown mode $mode (scaling, link or tiles)" >&2; exit 2 ;;
+  write)
+    size="${SIZE:-2048}"
+    final="$results/${OUT:-cluster_write}.jsonl"
+    out="$work/$(basename "$final")"
+    : > "$out"
+    for format in exr-float exr-half png; do
+      args=(--out "$work/frames/f_####.${format%%-*}")
+      [ "$format" = exr-float ] && args+=(--exr-float)
+      rm -rf "$work/frames"
+      mkdir -p "$work/frames"
+      echo "{\"type\":\"write\",\"size\":$size,\"tile\":512,\"in_flight\":8,\"format\":\"$format\"}" >> "$out"
+      run_cluster "$out" "" "" 127.0.0.1:0 127.0.0.1 1 2 --width "$size" --height "$size" --tile 512 \
+        --max-depth 0 --frames 0-15 --frames-in-flight 8 --tiles-per-worker 128 --wire float --compress none \
+        --link-mbps 1000 "${args[@]}"
+      written="$(find "$work/frames" -name 'f_*' | wc -l)"
+      [ "$written" -eq 16 ] || { echo "cluster_bench: $format: $written frames written, not 16" >&2; exit 1; }
+      echo "write: ${size}x$size, $format done"
+    done
+    ;;
+  *) echo "cluster_bench: unknown mode $mode (scaling, link, tiles or write)" >&2; exit 2 ;;
 esac
 python3 "$root/tests/bench/cluster_summary.py" "$out" > "$work/summary.md"
 mv "$out" "$final"

@@ -1454,6 +1454,37 @@ def case_slow_probe(c):
     expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
 
 
+def process_snapshot(proc):
+    """What a live process is doing, for a failure message: each thread's state, kernel wait
+    channel and CPU seconds, the process's resident memory, and its TCP sockets' queues."""
+    lines = []
+    tick = os.sysconf("SC_CLK_TCK")
+    task_dir = f"/proc/{proc.pid}/task"
+    try:
+        for tid in sorted(os.listdir(task_dir), key=int):
+            try:
+                with open(f"{task_dir}/{tid}/stat") as f:
+                    stat = f.read()
+                with open(f"{task_dir}/{tid}/wchan") as f:
+                    wchan = f.read().strip() or "-"
+            except OSError:
+                continue
+            name = stat[stat.index("(") + 1:stat.rindex(")")]
+            fields = stat[stat.rindex(")") + 2:].split()
+            lines.append(f"  thread {tid} {name}: state {fields[0]}, wchan {wchan}, "
+                         f"user {int(fields[11]) / tick:.2f} s, system {int(fields[12]) / tick:.2f} s")
+        with open(f"/proc/{proc.pid}/status") as f:
+            lines += [f"  {line.strip()}" for line in f if line.startswith(("VmRSS", "VmSwap"))]
+    except OSError as e:
+        lines.append(f"  /proc of pid {proc.pid}: {e}")
+    try:
+        ss = subprocess.run(["ss", "-tnpH"], capture_output=True, text=True, timeout=5).stdout
+        lines += [f"  {line}" for line in ss.splitlines() if f"pid={proc.pid}," in line]
+    except (OSError, subprocess.SubprocessError) as e:
+        lines.append(f"  ss: {e}")
+    return "\n".join(lines)
+
+
 def case_results_pile_up(c):
     """Results pile up in a worker while its master reads them slower than it renders them (here
     the master is stopped by SIGSTOP, as a slow link would hold them): up to the 128 tiles the
@@ -1475,14 +1506,20 @@ def case_results_pile_up(c):
                                                 "--frames-in-flight", "8", "--heartbeat-timeout", "30000",
                                                 "--link-mbps", "1000"])
     worker = c.start_worker("worker", addr, 2, ["--log-level", "debug"])
-    # The worker prepares a frame at its first tile: frame 7's means the first 8 frames' 128 tiles
-    # are handed out, and the master hands out another as each result comes.
+    # The worker prepares a frame when the master announces it (FrameSettings): frame 7's means
+    # the 8 frames in flight are open, and their 128 tiles follow in the same writes; the master
+    # hands out another as each result comes.
     expect_log(worker, r"frame 7: ", "a tile of the eighth frame", timeout=60, watch=[master, worker])
     master.send(signal.SIGSTOP)
+    stopped = time.monotonic()
     try:
         m = expect_log(worker, r"(\d+) MiB of results wait to be sent", "results piling up past 256 MiB", timeout=7,
                        watch=[worker])
-        print(f"worker: {m.group(0)}")
+        print(f"worker: {m.group(0)}, {time.monotonic() - stopped:.2f} s after the stop")
+    except Failure:
+        print(f"{time.monotonic() - stopped:.2f} s after the stop, the worker:\n{process_snapshot(worker)}\n"
+              f"the master:\n{process_snapshot(master)}", flush=True)
+        raise
     finally:
         master.send(signal.SIGCONT)
     expect_exit(master, 0, 120, "render the 16 frames")
