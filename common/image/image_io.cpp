@@ -83,6 +83,8 @@ struct Encoded {
   std::vector<std::uint8_t> bytes;  ///< or the bytes the encoding made
   /// Interleaves rows [y0, y1) into `dst` (spec.nchannels floats a pixel).
   std::function<void(int y0, int y1, float* dst)> rows;
+  /// The whole image's pixels (without `rows`).
+  [[nodiscard]] const void* data() const { return bytes.empty() ? whole : bytes.data(); }
 };
 
 // Rows handed to OpenImageIO at once when Encoded::rows makes them: a multiple of the 16 rows
@@ -335,8 +337,7 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
         encoded.rows(y0, y1, rows.data());
         if (!out->write_scanlines(y0, y1, 0, encoded.buffer_type, rows.data())) throw fail(out->geterror());
       }
-    } else if (!out->write_image(encoded.buffer_type,
-                                 encoded.bytes.empty() ? encoded.whole : encoded.bytes.data())) {
+    } else if (!out->write_image(encoded.buffer_type, encoded.data())) {
       throw fail(out->geterror());
     }
     if (!out->close()) throw fail(out->geterror());
