@@ -75,6 +75,11 @@ int run(int argc, char** argv) {
   app.add_option("--heartbeat-timeout", o.heartbeat_timeout_ms, "drop a worker silent for this many ms")
       ->check(CLI::Range(300, 3600000))
       ->capture_default_str();
+  app.add_option("--heartbeat-interval", o.heartbeat_ms,
+                 "ms between heartbeats (at most a third of --heartbeat-timeout); a worker treats a master "
+                 "silent for 5 intervals, at least 10 s, as gone")
+      ->check(CLI::Range(100, 1200000))
+      ->capture_default_str();
   app.add_option("--max-connections-per-host", o.max_connections_per_host,
                  "connections one peer address may hold open at once (more are closed at once)")
       ->check(CLI::Range(1, 1000000))
@@ -92,6 +97,10 @@ int run(int argc, char** argv) {
   app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening")->check(rtc::kNotEmpty);
   rtc::add_temporal_options(app, temporal_text, o.mark_cells);
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
+  std::string exr_compression_text = "zip";
+  app.add_option("--exr-compression", exr_compression_text,
+                 "EXR compression: none, rle, zips, zip, piz (all lossless), pxr24, b44, b44a, dwaa, dwab (lossy)")
+      ->capture_default_str();
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
@@ -102,6 +111,10 @@ int run(int argc, char** argv) {
   const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
+  const std::optional<rtc::ExrCompression> exr_compression = rtc::parse_exr_compression(exr_compression_text);
+  if (!exr_compression) {
+    throw rtc::Error("--exr-compression: expected " + rtc::exr_compression_names() + ", got \"" + exr_compression_text + "\"");
+  }
   o.temporal = rtc::parse_temporal_mode(temporal_text);
   (void)rtc::net::parse_host_port(o.listen, "--listen");
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
@@ -140,6 +153,13 @@ int run(int argc, char** argv) {
   o.write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
   o.write_options.write_depth = !no_depth;
   o.write_options.write_normal = !no_normal;
+  o.write_options.exr_compression = *exr_compression;
+  if (app.count("--exr-compression") > 0 && !exr) {
+    spdlog::warn("--exr-compression applies to EXR output only; {}",
+                 o.out_pattern.empty() ? std::string("no frames are written (no --out)") : o.out_pattern + " is not an EXR file");
+  } else if (exr && rtc::exr_compression_lossy(*exr_compression)) {
+    spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
+  }
   // A tile's pixels travel in one message: the largest tile must fit its payload limit.
   const std::size_t tile_bytes = rtc::max_encoded_tile_bytes(rtc::raw_tile_bytes(o.tile_size, o.tile_size, o.wire, o.channels));
   if (tile_bytes == 0 || tile_bytes + 128 > rtc::protocol::kMaxPayload) {
@@ -149,6 +169,10 @@ int run(int argc, char** argv) {
   }
   if (!token_file.empty()) o.token = rtc::protocol::read_token_file_warning_if_weak(token_file);
   // Three heartbeats fit in the timeout, so one late answer does not drop a worker.
+  if (app.count("--heartbeat-interval") > 0 && o.heartbeat_ms > o.heartbeat_timeout_ms / 3) {
+    throw rtc::Error("--heartbeat-interval " + std::to_string(o.heartbeat_ms) + ": more than a third of --heartbeat-timeout (" +
+                     std::to_string(o.heartbeat_timeout_ms) + " ms); one late answer would drop a worker");
+  }
   o.heartbeat_ms = std::min(o.heartbeat_ms, o.heartbeat_timeout_ms / 3);
   std::optional<rtc::FrameRange> requested;
   if (app.count("--frames") > 0) requested = rtc::parse_frame_range(frames_text);  // "" is an error too

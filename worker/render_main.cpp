@@ -138,6 +138,10 @@ int run(int argc, char** argv) {
                "rebuild a moving mesh's kd-tree in world space whenever it moves instead of building it once in "
                "object space and transforming the rays (for timing; pixels differ only by float rounding)");
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
+  std::string exr_compression_text = "zip";
+  app.add_option("--exr-compression", exr_compression_text,
+                 "EXR compression: none, rle, zips, zip, piz (all lossless), pxr24, b44, b44a, dwaa, dwab (lossy)")
+      ->capture_default_str();
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
@@ -153,6 +157,10 @@ int run(int argc, char** argv) {
     } catch (const rtc::Error& e) {
       throw rtc::Error(std::string("--isa: ") + e.what());
     }
+  }
+  const std::optional<rtc::ExrCompression> exr_compression = rtc::parse_exr_compression(exr_compression_text);
+  if (!exr_compression) {
+    throw rtc::Error("--exr-compression: expected " + rtc::exr_compression_names() + ", got \"" + exr_compression_text + "\"");
   }
   std::optional<rtc::FrameRange> requested_frames;
   if (app.count("--frames") > 0) requested_frames = rtc::parse_frame_range(frames_text);  // "" is an error too
@@ -183,9 +191,12 @@ int run(int argc, char** argv) {
   if (rtc::image_file_kind(first_out) != rtc::ImageFileKind::Exr) {
     // Options that only EXR files take are not silently dropped.
     for (const auto& [given, option] : {std::pair{exr_float, "--exr-float"}, std::pair{no_depth, "--no-depth"},
-                                        std::pair{no_normal, "--no-normal"}}) {
+                                        std::pair{no_normal, "--no-normal"},
+                                        std::pair{app.count("--exr-compression") > 0, "--exr-compression"}}) {
       if (given) spdlog::warn("{} applies to EXR output only; {} is not an EXR file", option, first_out.string());
     }
+  } else if (rtc::exr_compression_lossy(*exr_compression)) {
+    spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
   }
 
   rtc::RenderOptions options;
@@ -205,6 +216,7 @@ int run(int argc, char** argv) {
   write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
   write_options.write_depth = !no_depth;
   write_options.write_normal = !no_normal;
+  write_options.exr_compression = *exr_compression;
   const bool tty = isatty(STDERR_FILENO) != 0;
   std::unique_ptr<rtc::TemporalFrames> temporal;
   if (rtc::temporal_for(renderer.scene(), rtc::parse_temporal_mode(temporal_text)) && multiple) {

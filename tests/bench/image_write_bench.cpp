@@ -1,6 +1,6 @@
 // rtc-image-bench: Google Benchmark timings of rtc::write_image, the master's frame writer's one
 // job, on a 2048x2048 frame of the built-in scene with depth and normals. Each format the master writes: EXR float and half with Z and N,
-// TIFF, PNG. The files go to $TMPDIR (default /tmp) and are removed. Speed is reported here, never
+// TIFF, PNG; EXR with Z and N under other --exr-compression choices than the default zip. The files go to $TMPDIR (default /tmp) and are removed. Speed is reported here, never
 // asserted (not part of ctest). Run: build/release/tests/bench/rtc-image-bench
 #include <benchmark/benchmark.h>
 
@@ -67,7 +67,29 @@ void ExrHalfRgba(benchmark::State& state) {
 void Tiff(benchmark::State& state) { write(state, ".tif", {}); }
 void Png(benchmark::State& state) { write(state, ".png", {}); }
 
+// The same frame with each other --exr-compression (the ones above are zip).
+void ExrZN(benchmark::State& state, rtc::ExrPixelType type, rtc::ExrCompression compression) {
+  rtc::ImageWriteOptions o;
+  o.exr_type = type;
+  o.exr_compression = compression;
+  write(state, ".exr", o);
+}
+
 BENCHMARK(ExrFloatZN)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, float_none, rtc::ExrPixelType::Float, rtc::ExrCompression::None)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, float_zips, rtc::ExrPixelType::Float, rtc::ExrCompression::Zips)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, float_piz, rtc::ExrPixelType::Float, rtc::ExrCompression::Piz)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, float_pxr24, rtc::ExrPixelType::Float, rtc::ExrCompression::Pxr24)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, half_none, rtc::ExrPixelType::Half, rtc::ExrCompression::None)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, half_piz, rtc::ExrPixelType::Half, rtc::ExrCompression::Piz)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(ExrZN, half_dwaa, rtc::ExrPixelType::Half, rtc::ExrCompression::Dwaa)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(ExrHalfZN)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(ExrHalfRgba)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(Tiff)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -235,6 +235,21 @@ case_empty_frame_range() {
   [[ -z $(find "$work" -name 'o_*') ]] || fail "frames were written for an empty range"
 }
 
+case_exr_compression() {
+  # A word --exr-compression does not know is refused before anything is rendered; a lossy one
+  # is warned about; piz writes a file whose header names it.
+  expect_error exr_bad "--exr-compression: expected none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab" '"zip9"' -- \
+    "$render" --frames 0 --width 8 --height 8 --exr-compression zip9 --out "$work/c.exr"
+  [[ ! -e $work/c.exr ]] || fail "a frame was written with a bad --exr-compression"
+  run exr_dwaa "$render" --frames 0 --width 16 --height 12 --exr-compression dwaa --out "$work/d.exr"
+  expect_rc exr_dwaa 0
+  grep -q "\-\-exr-compression dwaa is lossy" "$work/exr_dwaa.err" || { show exr_dwaa >&2; fail "no warning that dwaa is lossy"; }
+  run exr_piz "$render" --frames 0 --width 16 --height 12 --exr-compression piz --out "$work/p.exr"
+  expect_rc exr_piz 0
+  if grep -q "lossy" "$work/exr_piz.err"; then show exr_piz >&2; fail "piz was called lossy"; fi
+  oiiotool --info -v "$work/p.exr" | grep -q 'compression: "piz"' || fail "$work/p.exr is not piz-compressed"
+}
+
 case_missing_out_folder() {
   expect_error out_folder "$work/missing/f.png" "$work/missing" "does not exist" -- \
     "$render" --frames 0 --width 16 --height 16 --out "$work/missing/f.png"

@@ -466,7 +466,10 @@ def case_workers_4(c):
 
 
 def case_exr_half_and_float(c):
-    for tag, extra, fmt in (("half", [], "half"), ("float", ["--exr-float"], "float")):
+    """EXR frames from the cluster equal rtc-render's in half and float, and with another
+    lossless compression than zip (--exr-compression piz), which their headers name."""
+    for tag, extra, fmt, compression in (("half", [], "half", "zip"), ("float", ["--exr-float"], "float", "zip"),
+                                         ("piz", ["--exr-float", "--exr-compression", "piz"], "float", "piz")):
         ref = c.reference(f"ref-{tag}", SMALL, "0-1", "exr", extra)
         out, frames, _, _, _ = c.cluster_run(tag, SMALL, "0-1", "exr", workers=2, master_extra=extra)
         wires = {f["wire_format"] for f in frames}
@@ -478,7 +481,12 @@ def case_exr_half_and_float(c):
                     fail(f"{tag}: channel {ch} missing from the EXR: {channels}")
             if fmt not in desc:
                 fail(f"{tag}: EXR pixel types are {desc}, expected {fmt}")
-        print(f"{tag}: EXR frames equal rtc-render's ({desc}; {channels})")
+        for path in (os.path.join(out, "m_0000.exr"), os.path.join(ref, "r_0000.exr")):
+            info = subprocess.run([c.args.oiiotool, "--info", "-v", path], capture_output=True, text=True,
+                                  timeout=60).stdout
+            if not re.search(rf'compression: "{compression}"', info):
+                fail(f"{tag}: {path} is not {compression}-compressed:\n{info}")
+        print(f"{tag}: EXR frames equal rtc-render's ({desc}; {channels}; {compression})")
 
 
 def case_wire_formats_compression(c):
@@ -1491,8 +1499,9 @@ def case_results_pile_up(c):
     worker may hold, 512x512 in float RGBA, depth and normals, 8 MiB each, 1 GiB. The worker keeps
     them and the connection: its send queue's 256 MiB limit, meant to tell a master that stopped
     reading, used to close it with the work thrown away. One triangle, so the tiles render fast;
-    the stop lasts at most 7 s (a worker gives up on a master silent for 10 s), ending as soon as
-    the worker says more than 256 MiB wait. 16 frames of 16 tiles, 8 of them in flight: the stop
+    the stop lasts at most 15 s (heartbeats every 4 s: the worker gives up on a master silent for
+    5 of them, 20 s; a 7-s bound under the 10-s default failed once in CI, stop 74), ending as soon
+    as the worker says more than 256 MiB wait. 16 frames of 16 tiles, 8 of them in flight: the stop
     comes at frame 7, when the worker holds 128 tiles and has rendered about half of them. (With
     8 frames the stop came at the last one: only its 16 tiles were left to pile up, and once the
     master took tiles as fast as they came, 2026-12-02, the queue never passed 256 MiB.)"""
@@ -1504,6 +1513,7 @@ def case_results_pile_up(c):
     master, addr, _ = c.start_master("master", [*scene, "--frames", "0-15", "--out", os.path.join(out, "f_####.exr"),
                                                 "--exr-float", "--compress", "none", "--tiles-per-worker", "128",
                                                 "--frames-in-flight", "8", "--heartbeat-timeout", "30000",
+                                                "--heartbeat-interval", "4000",
                                                 "--link-mbps", "1000"])
     worker = c.start_worker("worker", addr, 2, ["--log-level", "debug"])
     # The worker prepares a frame when the master announces it (FrameSettings): frame 7's means
@@ -1513,7 +1523,7 @@ def case_results_pile_up(c):
     master.send(signal.SIGSTOP)
     stopped = time.monotonic()
     try:
-        m = expect_log(worker, r"(\d+) MiB of results wait to be sent", "results piling up past 256 MiB", timeout=7,
+        m = expect_log(worker, r"(\d+) MiB of results wait to be sent", "results piling up past 256 MiB", timeout=15,
                        watch=[worker])
         print(f"worker: {m.group(0)}, {time.monotonic() - stopped:.2f} s after the stop")
     except Failure:
@@ -1716,6 +1726,9 @@ def case_master_cli_errors(c):
         (["--out", c.path("x_####.xyz")], r"--out: .*x_0000\.xyz: unsupported extension '\.xyz'"),
         (["--out", ""], r"--out: the pattern is empty"),
         (["--frames", ""], r'--frames: expected A-B or A, got ""'),
+        (["--heartbeat-interval", "4000", "--heartbeat-timeout", "10000"],
+         r"--heartbeat-interval 4000: more than a third of --heartbeat-timeout \(10000 ms\)"),
+        (["--exr-compression", "gzip"], r'--exr-compression: expected none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab, got "gzip"'),
         (["--log-level", "loud"], r'--log-level: expected trace, debug, info, warn, error, critical or off, got "loud"'),
         ([degenerate], rf"{re.escape(degenerate)}: frame 0: camera: eye and look_at coincide"),
     ]
@@ -1737,6 +1750,7 @@ def case_master_cli_errors(c):
         (["--token-file", ""], r"--token-file: the value is empty"),
         (["--stats-json", ""], r"--stats-json: the value is empty"),
         (["--min-workers", "0"], r"--min-workers: Value 0 not in range"),
+        (["--heartbeat-interval", "50"], r"--heartbeat-interval: Value 50 not in range"),
         (["--colour", "red"], r"The following argument was not expected: --colour"),
     ]
     for i, (args, pattern) in enumerate(usage):
