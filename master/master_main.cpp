@@ -157,7 +157,7 @@ int run(int argc, char** argv) {
   if (app.count("--exr-compression") > 0 && !exr) {
     spdlog::warn("--exr-compression applies to EXR output only; {}",
                  o.out_pattern.empty() ? std::string("no frames are written (no --out)") : o.out_pattern + " is not an EXR file");
-  } else if (exr && rtc::exr_compression_lossy(*exr_compression)) {
+  } else if (exr && rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half)) {
     spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
   }
   // A tile's pixels travel in one message: the largest tile must fit its payload limit.

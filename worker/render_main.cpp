@@ -195,7 +195,7 @@ int run(int argc, char** argv) {
                                         std::pair{app.count("--exr-compression") > 0, "--exr-compression"}}) {
       if (given) spdlog::warn("{} applies to EXR output only; {} is not an EXR file", option, first_out.string());
     }
-  } else if (rtc::exr_compression_lossy(*exr_compression)) {
+  } else if (rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half)) {
     spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
   }
 

@@ -456,6 +456,7 @@ class WorkerClient {
     const std::string peer = conn->peer();
     conn_ = std::move(conn);
     welcomed_ = false;
+    heartbeat_ms_ = kDefaultHeartbeatMs;  // the previous master's interval is not this one's
     tiles_outstanding_ = 0;
     conn_->set_max_queued_bytes(kDefaultSendCap);
     backlog_noted_ = false;
@@ -518,7 +519,8 @@ class WorkerClient {
         spdlog::warn("{} has said nothing in 2 s since the connection opened: it may be stopped or busy, or {}",
                      conn_->peer(), kTlsHint);
       }
-      const auto limit = std::chrono::milliseconds(std::max<std::uint32_t>(10000, 5 * heartbeat_ms_));
+      // 64 bits: a master's interval is any 32-bit number on the wire.
+      const auto limit = std::chrono::milliseconds(std::max<std::uint64_t>(10000, 5 * std::uint64_t{heartbeat_ms_}));
       // A big message on its way (a scene chunk on a slow link) counts while its bytes keep coming.
       if (Clock::now() - std::max(last_heard_, conn_->bytes_arrived()) > limit) {
         conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
@@ -777,7 +779,8 @@ class WorkerClient {
   bool welcomed_ = false, goodbye_ = false, auth_rejected_ = false, finished_ = false, retry_logged_ = false;
   int exit_code_ = 0;
   int backoff_ms_ = 200;
-  std::uint32_t heartbeat_ms_ = 1000;
+  static constexpr std::uint32_t kDefaultHeartbeatMs = 1000;  ///< until a master's Welcome says its own
+  std::uint32_t heartbeat_ms_ = kDefaultHeartbeatMs;
   std::uint32_t max_outstanding_ = 0;
   /// The send queue's limit on a new connection, raised to hold the results of every tile the
   /// master may have out (handle(TileAssign)).

@@ -59,8 +59,10 @@ struct Image {
 enum class ExrPixelType { Half, Float };
 
 /// OpenEXR's compressions. None, Rle, Zips (zip a line), Zip (16 lines) and Piz keep every
-/// bit; Pxr24 rounds float to 24 bits; B44, B44a, Dwaa and Dwab lose detail of half channels
-/// (float channels pass B44 unchanged; DWA keeps Z exact).
+/// bit. Pxr24 rounds float channels to 24 bits (Z always; half channels kept); B44 and B44a
+/// lose detail of half channels (float ones kept); Dwaa and Dwab lose detail of R, G, B and
+/// N.Y (a channel named Y is luminance to them; float ones first rounded to half) and keep A,
+/// Z, N.X and N.Z exact.
 enum class ExrCompression { None, Rle, Zips, Zip, Piz, Pxr24, B44, B44a, Dwaa, Dwab };
 
 /// "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab": OpenEXR's
@@ -68,8 +70,8 @@ enum class ExrCompression { None, Rle, Zips, Zip, Piz, Pxr24, B44, B44a, Dwaa, D
 [[nodiscard]] std::string_view exr_compression_name(ExrCompression c);
 /// The compression of a name exr_compression_name gives, or nullopt.
 [[nodiscard]] std::optional<ExrCompression> parse_exr_compression(std::string_view name);
-/// Whether the compression may change pixel values.
-[[nodiscard]] bool exr_compression_lossy(ExrCompression c);
+/// Whether the compression may change pixel values of a file with RGBA and N stored as `type`.
+[[nodiscard]] bool exr_compression_lossy(ExrCompression c, ExrPixelType type);
 /// "none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab", for error messages.
 [[nodiscard]] std::string exr_compression_names();
 

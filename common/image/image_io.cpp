@@ -306,9 +306,18 @@ std::optional<ExrCompression> parse_exr_compression(std::string_view name) {
   return std::nullopt;
 }
 
-bool exr_compression_lossy(ExrCompression c) {
-  return c == ExrCompression::Pxr24 || c == ExrCompression::B44 || c == ExrCompression::B44a ||
-         c == ExrCompression::Dwaa || c == ExrCompression::Dwab;
+bool exr_compression_lossy(ExrCompression c, ExrPixelType type) {
+  switch (c) {
+    case ExrCompression::Pxr24:  // rounds float channels, and Z is always float
+    case ExrCompression::Dwaa:   // R, G and B in either type
+    case ExrCompression::Dwab:
+      return true;
+    case ExrCompression::B44:  // half channels only
+    case ExrCompression::B44a:
+      return type == ExrPixelType::Half;
+    default:
+      return false;
+  }
 }
 
 std::string exr_compression_names() {
@@ -366,7 +375,7 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
     // what an uncompressed EXR takes, and more than a compressed file does. Untouched room costs
     // no memory; the buffer growing by doubling cost copies and fresh pages (a 2048x2048 float
     // EXR with Z and N, no compression: 134 MB grown through copies of 67, 34, ... MB).
-    bytes.reserve(std::min<std::size_t>(encoded.spec.image_bytes() + (std::size_t{1} << 20), std::size_t{1} << 30));
+    bytes.reserve(std::min<std::size_t>(encoded.spec.image_bytes(/*native=*/true) + (std::size_t{1} << 20), std::size_t{1} << 30));
     OIIO::Filesystem::IOVecOutput proxy(bytes);
     auto out = OIIO::ImageOutput::create(format->oiio_format);
     if (!out) throw fail(OIIO::geterror());
