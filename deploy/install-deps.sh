@@ -30,6 +30,9 @@ if [ "$build_only" = 0 ]; then
     # tests/fuzz: libFuzzer targets (clang with its runtime); scene_load_timing compares Assimp
     clang-14 libclang-rt-14-dev libassimp-dev
     iproute2 iperf3 python3 gnuplot-nox
+    # Commands the tests and benchmarks call: Cluster.tls makes certificates (openssl),
+    # compose_test.sh lists processes (ps), kernel_compile_time.sh times and sums (/usr/bin/time, bc)
+    openssl procps time bc
     # tests/deploy: compose v1, a base image made without a registry (debootstrap + docker import)
     docker-compose debootstrap
   )

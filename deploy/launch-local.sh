@@ -8,6 +8,8 @@
 #          a first argument that is not a number is the SCENE
 #   SCENE  scene file (default: the built-in scene, its whole animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
+#          (--token-file F is passed on to the workers too, --tls-cert C makes them trust C, and
+#          --tls-server-name NAME, the workers' alone, is the name C carries if not 127.0.0.1)
 # Frames go to out/cluster/<scene>_NNNN.png (rtc-master --out-dir: <scene> is the scene's name as
 # rtc-render names its frames) unless the extra args give --out or --out-dir; --no-out among them
 # (taken by this script) writes no frames at all: a frame-rate run. --min-workers among them
@@ -19,7 +21,11 @@
 # Ctrl-C (SIGINT to this script's process group) and SIGTERM to the script or its group are passed
 # on to the master, once per signal: the first makes it finish the frames in flight, then
 # everything stops; a second abandons them.
+# A worker that fails (exits non-zero before the master) is reported with the end of its log; the
+# master is stopped when fewer workers are left than --min-workers, and abandons its frames when
+# none is. Exit status: the master's, or 1 when a worker failed; logs are kept when either failed.
 set -euo pipefail
+usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 root="$(cd "$(dirname "$0")/.." && pwd)"
 if [ -n "${RTC_BUILD_DIR:-}" ]; then
   build="$(realpath -m -- "$RTC_BUILD_DIR")"
@@ -29,6 +35,17 @@ else
   build="$root/build/programs"
 fi
 
+case "${1:-}" in
+  -h | --help) usage; exit 0 ;;
+esac
+# An option before `--` is rtc-master's, given in the wrong place.
+for a in "$@"; do
+  [ "$a" = "--" ] && break
+  if [[ "$a" == -* ]]; then
+    echo "launch-local: $a: rtc-master's options go after -- (usage: launch-local.sh [N] [SCENE] [-- rtc-master args]; --help for more)" >&2
+    exit 2
+  fi
+done
 workers="$(nproc)"
 scene=()
 # A scene without N: the first argument names a file and is not a number.
@@ -72,17 +89,62 @@ fi
 
 has_out=0
 has_min_workers=0
+min_workers="$workers"
 master_args=()
-for a in "${extra[@]}"; do
+worker_args=()
+# The value of an option given as `--name VALUE` or `--name=VALUE`, at extra[i]: sets `value`
+# and `used` (1 or 2 arguments).
+option_value() {
+  local i=$1 name=$2
+  if [ "${extra[$i]}" = "$name" ]; then
+    if [ $((i + 1)) -ge ${#extra[@]} ]; then
+      echo "launch-local: $name needs a value" >&2
+      exit 2
+    fi
+    value="${extra[$((i + 1))]}"
+    used=2
+  else
+    value="${extra[$i]#"$name="}"
+    used=1
+  fi
+}
+i=0
+while [ "$i" -lt ${#extra[@]} ]; do
+  a="${extra[$i]}"
+  used=1
   case "$a" in
-    --no-out) has_out=1; continue ;;  # this script's own: no --out added, frames not written
+    --no-out) has_out=1; i=$((i + 1)); continue ;;  # this script's own: no --out added, frames not written
     --out | --out=* | --out-dir | --out-dir=*) has_out=1 ;;
-    --min-workers | --min-workers=*) has_min_workers=1 ;;
+    --min-workers | --min-workers=*)
+      option_value "$i" --min-workers
+      # The master waits for that many before it starts: more than this script starts is a wait for ever.
+      if [[ "$value" =~ ^[0-9]{1,6}$ ]] && [ "$((10#$value))" -gt "$workers" ]; then
+        echo "launch-local: --min-workers $value but $workers worker$([ "$workers" = 1 ] || echo s) started here: the master would wait for ever (give N >= $value)" >&2
+        exit 2
+      fi
+      has_min_workers=1
+      if [[ "$value" =~ ^[0-9]{1,6}$ ]]; then min_workers="$((10#$value))"; fi ;;
+    --token-file | --token-file=*)
+      # The workers must prove the same token.
+      option_value "$i" --token-file
+      worker_args+=(--token-file "$value") ;;
+    --tls-cert | --tls-cert=*)
+      # The workers must trust the master's certificate; they connect to 127.0.0.1, so it must name
+      # that address (rtc-worker says so when it does not).
+      option_value "$i" --tls-cert
+      worker_args+=(--tls-ca "$value") ;;
+    --tls-server-name | --tls-server-name=*)
+      # The workers' own: the name the certificate carries when it does not name 127.0.0.1.
+      option_value "$i" --tls-server-name
+      worker_args+=(--tls-server-name "$value")
+      i=$((i + used))
+      continue ;;
     --listen | --listen=* | --ready-file | --ready-file=*)
       echo "launch-local: $a is this script's own (the master listens on a free loopback port); start rtc-master by hand to choose it" >&2
       exit 2 ;;
   esac
-  master_args+=("$a")
+  master_args+=("${extra[@]:$i:$used}")
+  i=$((i + used))
 done
 if [ "$has_out" = 0 ]; then
   mkdir -p out/cluster
@@ -95,22 +157,48 @@ threads=$(( cores / workers ))
 [ "$threads" -ge 1 ] || threads=1
 run_dir="$(mktemp -d "${TMPDIR:-/tmp}/rtc-local.XXXXXX")"
 master_pid=""
-worker_pids=()
+worker_pids=()  # the workers not yet collected
+declare -A worker_name=()  # pid -> local-i
 workers_started=0
+workers_failed=0
+
+# A worker has exited with `rc` (before the master, or after the master had gone, before the
+# script stopped it): a failure unless 0.
+worker_exited() {
+  local pid=$1 rc=$2 name="${worker_name[$1]}"
+  local kept=()
+  for p in "${worker_pids[@]}"; do [ "$p" = "$pid" ] || kept+=("$p"); done
+  worker_pids=("${kept[@]}")
+  [ "$rc" -eq 0 ] && return 0
+  workers_failed=$((workers_failed + 1))
+  echo "launch-local: worker $name (pid $pid) exited with status $rc; the end of its log ($run_dir/worker-${name#local-}.log):" >&2
+  tail -n 8 "$run_dir/worker-${name#local-}.log" | sed 's/^/  | /' >&2
+}
 
 cleanup() {
   local status=$?
   trap - EXIT INT TERM
   if [ -n "$master_pid" ] && kill -0 "$master_pid" 2>/dev/null; then
     kill -TERM "$master_pid" 2>/dev/null || true
+    for _ in $(seq 1 100); do kill -0 "$master_pid" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$master_pid" 2>/dev/null || true
     wait "$master_pid" 2>/dev/null || true
   fi
+  # Workers that exited by themselves (a goodbye from the master, or a failure) are collected with
+  # their status; the rest are stopped.
+  for pid in "${worker_pids[@]}"; do
+    kill -0 "$pid" 2>/dev/null || { local rc=0; wait "$pid" 2>/dev/null || rc=$?; worker_exited "$pid" "$rc"; }
+  done
   for pid in "${worker_pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
   for pid in "${worker_pids[@]}"; do
     for _ in $(seq 1 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
     kill -KILL "$pid" 2>/dev/null || true
     wait "$pid" 2>/dev/null || true
   done
+  if [ "$status" -eq 0 ] && [ "$workers_failed" -gt 0 ]; then
+    echo "launch-local: $workers_failed worker$([ "$workers_failed" = 1 ] || echo s) failed" >&2
+    status=1
+  fi
   if [ "$status" -ne 0 ] && [ "$workers_started" = 1 ]; then
     echo "launch-local: worker logs kept in $run_dir" >&2
   else
@@ -143,34 +231,57 @@ trap 'forward TERM' TERM
 setsid "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
 master_pid=$!
 for sig in "${pending[@]}"; do kill -"$sig" "$master_pid" 2>/dev/null || true; done
-for _ in $(seq 1 600); do
-  [ -s "$run_dir/address" ] && break
-  kill -0 "$master_pid" 2>/dev/null || { wait "$master_pid"; exit $?; }
+# The master loads the scene before it listens: however long that takes, while it runs.
+waited=0
+until [ -s "$run_dir/address" ]; do
+  kill -0 "$master_pid" 2>/dev/null || { rc=0; wait "$master_pid" || rc=$?; exit "$rc"; }
   sleep 0.1
+  waited=$((waited + 1))
+  [ $((waited % 300)) -ne 0 ] || echo "launch-local: waiting for the master to load the scene and listen ($((waited / 10)) s)" >&2
 done
-[ -s "$run_dir/address" ] || { echo "launch-local: the master did not start listening within 60 s" >&2; exit 1; }
 address="$(cat "$run_dir/address")"
 echo "launch-local: master on $address; starting $workers worker$([ "$workers" = 1 ] || echo s) with $threads" \
   "thread$([ "$threads" = 1 ] || echo s) each (logs in $run_dir)"
 workers_started=1
 for i in $(seq 1 "$workers"); do
   setsid "$build/worker/rtc-worker" --connect "$address" --threads "$threads" --name "local-$i" \
-    --retry-seconds 10 > "$run_dir/worker-$i.log" 2>&1 &
+    --retry-seconds 10 "${worker_args[@]}" > "$run_dir/worker-$i.log" 2>&1 &
   worker_pids+=($!)
+  worker_name[$!]="local-$i"
 done
 
-# The master's own exit status. A trapped signal cuts `wait` short (status 128 + signal) whether
-# or not the master is still running, so wait again after one: the master's status stays there
-# to be collected (it may well have exited by then: it finishes its frames in milliseconds), and
-# 127 means the wait before the signal already collected it.
+# Wait for the master or a worker, whichever exits first. A trapped signal cuts `wait` short
+# (status 128 + signal, `done_pid` unset) whether or not they still run: wait again then; an
+# exited process's status stays there to be collected.
 status=0
+stopped=0
 while :; do
   interrupted=0
   rc=0
-  wait "$master_pid" || rc=$?
-  [ "$rc" -eq 127 ] && break
-  status=$rc
-  [ "$interrupted" -eq 1 ] || break
+  done_pid=""
+  wait -n -p done_pid "$master_pid" "${worker_pids[@]}" || rc=$?
+  if [ -z "${done_pid:-}" ]; then
+    [ "$interrupted" -eq 1 ] && continue
+    break  # nothing left to wait for
+  fi
+  if [ "$done_pid" = "$master_pid" ]; then
+    status=$rc
+    master_pid=""
+    break
+  fi
+  worker_exited "$done_pid" "$rc"
+  [ "$rc" -ne 0 ] || continue  # a goodbye: the master is ending
+  # The master starts only with --min-workers ready, and renders nothing without any.
+  if [ ${#worker_pids[@]} -eq 0 ]; then
+    echo "launch-local: no worker left; stopping the master (its frames in flight are abandoned)" >&2
+    kill -TERM "$master_pid" 2>/dev/null || true
+    sleep 0.2
+    kill -TERM "$master_pid" 2>/dev/null || true
+  elif [ ${#worker_pids[@]} -lt "$min_workers" ] && [ "$stopped" = 0 ]; then
+    echo "launch-local: ${#worker_pids[@]} worker$([ ${#worker_pids[@]} = 1 ] || echo s) left, fewer than --min-workers $min_workers; stopping the master (it finishes the frames in flight)" >&2
+    kill -TERM "$master_pid" 2>/dev/null || true
+    stopped=1
+  fi
 done
 [ "$status" -eq 0 ] || echo "launch-local: rtc-master exited with status $status" >&2
 exit "$status"

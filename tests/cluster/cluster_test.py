@@ -1812,16 +1812,26 @@ def _launcher_env(c):
     return dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
 
 
-def _run_launcher(c, name, extra, interrupt, scene=None, workers="2"):
+def _launcher_processes(c, log):
+    """pids of the master and workers of the launcher run that printed `log`."""
+    m = re.search(r"launch-local: master on (\S+);", log)
+    found = _processes_with(os.path.join(c.tmp, "rtc-local."))  # the master's --ready-file
+    if m:
+        found += _processes_with(f"--connect {m.group(1)}")
+    return found
+
+
+def _run_launcher(c, name, extra, interrupt, scene=None, workers="2", env=None):
     """deploy/launch-local.sh [WORKERS] [SCENE] -- EXTRA in its own process group (as from a terminal);
     with `interrupt`, SIGINT to the whole group once the first frame is logged (as Ctrl-C), or
     with interrupt="term" SIGTERM to the script alone (as `kill`), with "term-group" to the whole
-    group (as `kill %1` or `timeout`). Returns (rc, log)."""
+    group (as `kill %1` or `timeout`). Returns (rc, log). Whatever the run leaves behind is
+    killed (the master and workers run in sessions of their own, out of the group's reach)."""
     log_path = c.path(f"{name}.log")
     with open(log_path, "wb") as log:
         p = subprocess.Popen(["bash", LAUNCHER, *([workers] if workers else []), *([scene] if scene else []), "--", *extra],
                              stdin=subprocess.DEVNULL, stdout=log,
-                             stderr=subprocess.STDOUT, cwd=c.tmp, env=_launcher_env(c), start_new_session=True)
+                             stderr=subprocess.STDOUT, cwd=c.tmp, env=env or _launcher_env(c), start_new_session=True)
     def text():
         with open(log_path, encoding="utf-8", errors="replace") as f:
             return f.read()
@@ -1842,16 +1852,19 @@ def _run_launcher(c, name, extra, interrupt, scene=None, workers="2"):
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
             p.wait()
+            for pid in _launcher_processes(c, text()):
+                os.kill(pid, signal.SIGKILL)
     out = text()
-    m = re.search(r"launch-local: master on (\S+);", out)
-    if not m:
+    if not re.search(r"launch-local: master on (\S+);", out):
         fail(f"launch-local.sh printed no master address:\n{out}")
     # No master or worker of this run may outlive the script.
     deadline = time.monotonic() + 10
-    while _processes_with(f"--connect {m.group(1)}") and time.monotonic() < deadline:
+    while _launcher_processes(c, out) and time.monotonic() < deadline:
         time.sleep(0.1)
-    left = _processes_with(f"--connect {m.group(1)}") + _processes_with(os.path.join(c.tmp, "rtc-local."))
+    left = _launcher_processes(c, out)
     if left:
+        for pid in left:
+            os.kill(pid, signal.SIGKILL)
         fail(f"processes left behind by launch-local.sh: {left}")
     return rc, out
 
@@ -1937,6 +1950,80 @@ def case_launch_local(c):
         fail(f"rtc-render with a named scene: exit {r.returncode}, out/ holds {sorted(os.listdir(os.path.join(c.tmp, 'out')))}:\n"
              f"{r.stdout}{r.stderr}")
     print("a named scene's frames: out/cluster/lab__2_take_3_0000.png (launch-local), out/lab__2_take_3.png (rtc-render)")
+
+
+def case_launch_local_failures(c):
+    """deploy/launch-local.sh when something fails or must reach the workers too: a worker that
+    exits non-zero is reported with the end of its log, the master is stopped when fewer than
+    --min-workers are left (before, it waited for them for ever, and the script exited 0 and
+    deleted the logs on Ctrl-C), the run exits 1 and keeps the logs; --token-file and --tls-cert
+    reach the workers (before, they were refused and the master waited for ever); misplaced
+    options, --help and a --min-workers over N are answered at once."""
+    def quick(args):
+        r = subprocess.run(["bash", LAUNCHER, *args], cwd=c.tmp, env=_launcher_env(c), stdin=subprocess.DEVNULL,
+                           capture_output=True, text=True, timeout=60)
+        return r.returncode, r.stdout + r.stderr
+    rc, log = quick(["--help"])
+    if rc != 0 or "Usage: ./deploy/launch-local.sh [N] [SCENE]" not in log or "master on" in log:
+        fail(f"launch-local.sh --help: exit {rc}, expected 0 and the usage:\n{log}")
+    rc, log = quick(["2", "--frames", "0"])
+    if rc != 2 or "launch-local: --frames: rtc-master's options go after --" not in log or "master on" in log:
+        fail(f"launch-local.sh 2 --frames 0: exit {rc}, expected 2 and where the option goes:\n{log}")
+    for arg in (["--min-workers", "3"], ["--min-workers=3"]):
+        rc, log = quick(["2", "--", *SMALL, *arg])
+        if rc != 2 or "--min-workers 3 but 2 workers started here" not in log or "master on" in log:
+            fail(f"launch-local.sh 2 -- {' '.join(arg)}: exit {rc}, expected 2 and why:\n{log}")
+    rc, log = quick(["2", "--", *SMALL, "--token-file"])
+    if rc != 2 or "launch-local: --token-file needs a value" not in log:
+        fail(f"launch-local.sh 2 -- --token-file: exit {rc}, expected 2:\n{log}")
+    print("--help (exit 0), a master option before --, --min-workers over N and --token-file without a value "
+          "(exit 2) answered before anything starts")
+
+    # The token and TLS reach the workers: every frame as rtc-render's.
+    ref = c.reference("ref", SMALL, "0-1", "png")
+    token = c.token_file("token", "launcher-token")
+    cert, key = make_certificate(c, "master")
+    for tag, extra in (("token", ["--token-file", token]), ("tls", [f"--tls-cert={cert}", "--tls-key", key,
+                                                                     "--token-file=" + token])):
+        out = c.mkdir(f"run-{tag}")
+        rc, log = _run_launcher(c, f"launch-{tag}", [*SMALL, "--frames", "0-1", *extra,
+                                                     "--out", os.path.join(out, "m_####.png")], False)
+        if rc != 0:
+            fail(f"launch-local.sh -- {' '.join(extra)}: exit {rc}, expected 0:\n{log}")
+        c.expect_frames_equal(out, "m", ref, range(0, 2), "png")
+    print("--token-file and --tls-cert reached the workers: 2 frames each, identical to rtc-render's")
+
+    # Workers that fail: a build folder with the real master and a worker that fails as local-1
+    # (or as every worker), the real one otherwise.
+    fake = c.mkdir("fake-build")
+    os.makedirs(os.path.join(fake, "master"))
+    os.makedirs(os.path.join(fake, "worker"))
+    os.symlink(os.path.abspath(c.args.master), os.path.join(fake, "master", "rtc-master"))
+    for failing, tag in (("local-1", "one"), ("local-*", "all")):
+        wrapper = os.path.join(fake, "worker", "rtc-worker")
+        with open(wrapper, "w", encoding="utf-8") as f:
+            f.write("#!/usr/bin/env bash\n"
+                    f'for a in "$@"; do [[ "$a" == {failing} ]] && {{ echo "pretend failure of $a: no GPU" >&2; exit 3; }}; done\n'
+                    f'exec {os.path.abspath(c.args.worker)} "$@"\n')
+        os.chmod(wrapper, 0o755)
+        env = dict(_launcher_env(c), RTC_BUILD_DIR=fake)
+        started = time.monotonic()
+        rc, log = _run_launcher(c, f"launch-fail-{tag}", [*SMALL, "--frames", "0-3", "--no-out"], False, env=env)
+        took = time.monotonic() - started
+        if rc != 1:
+            fail(f"launch-local.sh with {tag} worker(s) failing: exit {rc}, expected 1:\n{log}")
+        if not re.search(r"worker local-1 \(pid \d+\) exited with status 3; the end of its log", log) or \
+                "  | pretend failure of local-1: no GPU" not in log:
+            fail(f"launch-local.sh did not report local-1's failure with its log:\n{log}")
+        if "fewer than --min-workers 2; stopping the master" not in log:
+            fail(f"launch-local.sh did not stop the master waiting for 2 workers:\n{log}")
+        if tag == "all" and not re.search(r"worker local-2 .*exited with status 3|no worker left", log):
+            fail(f"launch-local.sh did not report local-2's failure:\n{log}")
+        m = re.search(r"worker logs kept in (\S+)", log)
+        if not m or not os.path.isfile(os.path.join(m.group(1), "worker-1.log")):
+            fail(f"launch-local.sh did not keep the worker logs:\n{log}")
+        print(f"{tag} worker(s) failing: exit 1 in {took:.1f} s, the failure and its log named, logs kept, "
+              f"nothing left behind")
 
 
 # ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------
@@ -2067,6 +2154,7 @@ CASES = {
     "failing_workers": case_failing_workers,
     "master_cli_errors": case_master_cli_errors,
     "launch_local": case_launch_local,
+    "launch_local_failures": case_launch_local_failures,
 }
 
 
