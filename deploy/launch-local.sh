@@ -21,9 +21,11 @@
 # Ctrl-C (SIGINT to this script's process group) and SIGTERM to the script or its group are passed
 # on to the master, once per signal: the first makes it finish the frames in flight, then
 # everything stops; a second abandons them.
-# A worker that fails (exits non-zero before the master) is reported with the end of its log; the
-# master is stopped when fewer workers are left than --min-workers, and abandons its frames when
-# none is. Exit status: the master's, or 1 when a worker failed; logs are kept when either failed.
+# A worker that fails (exits non-zero before the master) is reported with the end of its log, one
+# stopped from outside is named; when fewer workers are left than --min-workers the master is
+# stopped (it finishes the frames in flight; with no worker left, it abandons them after its
+# --drain-seconds). Exit status: the master's, or 1 when a worker failed or the master had to be
+# stopped for want of workers; the logs are kept then.
 set -euo pipefail
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -35,12 +37,14 @@ else
   build="$root/build/programs"
 fi
 
-case "${1:-}" in
-  -h | --help) usage; exit 0 ;;
-esac
-# An option before `--` is rtc-master's, given in the wrong place.
+# An option before `--` is rtc-master's, given in the wrong place (or --help).
 for a in "$@"; do
   [ "$a" = "--" ] && break
+  case "$a" in -h | --help) usage; exit 0 ;; esac
+  if [[ "$a" =~ ^-[0-9]+$ ]]; then
+    echo "launch-local: N must be a positive number of workers, got \"$a\"" >&2
+    exit 2
+  fi
   if [[ "$a" == -* ]]; then
     echo "launch-local: $a: rtc-master's options go after -- (usage: launch-local.sh [N] [SCENE] [-- rtc-master args]; --help for more)" >&2
     exit 2
@@ -162,41 +166,60 @@ declare -A worker_name=()  # pid -> local-i
 workers_started=0
 workers_failed=0
 
-# A worker has exited with `rc` (before the master, or after the master had gone, before the
-# script stopped it): a failure unless 0.
+# A worker has exited with `rc`: a failure unless 0. Status 0 is a goodbye from the master (the
+# run is ending: its log says so) or a worker stopped from outside (a signal, on which it says
+# goodbye itself). Returns 1 when the workers left must be judged (judge_workers, below).
 worker_exited() {
   local pid=$1 rc=$2 name="${worker_name[$1]}"
+  local log="$run_dir/worker-${name#local-}.log"
   local kept=()
   for p in "${worker_pids[@]}"; do [ "$p" = "$pid" ] || kept+=("$p"); done
   worker_pids=("${kept[@]}")
-  [ "$rc" -eq 0 ] && return 0
+  if [ "$rc" -eq 0 ]; then
+    grep -q " said goodbye: " "$log" 2>/dev/null && return 0
+    echo "launch-local: worker $name (pid $pid) left (stopped from outside)" >&2
+    return 1
+  fi
   workers_failed=$((workers_failed + 1))
-  echo "launch-local: worker $name (pid $pid) exited with status $rc; the end of its log ($run_dir/worker-${name#local-}.log):" >&2
-  tail -n 8 "$run_dir/worker-${name#local-}.log" | sed 's/^/  | /' >&2
+  echo "launch-local: worker $name (pid $pid) exited with status $rc; the end of its log ($log):" >&2
+  { tail -n 8 "$log" | sed 's/^/  | /' >&2; } || true
+  return 1
 }
 
 cleanup() {
   local status=$?
-  trap - EXIT INT TERM
+  # Bounded (the master 10 s, then KILL; the workers 5 s): a signal now would end the script
+  # with its processes still running.
+  trap - EXIT
+  trap '' INT TERM
   if [ -n "$master_pid" ] && kill -0 "$master_pid" 2>/dev/null; then
     kill -TERM "$master_pid" 2>/dev/null || true
-    for _ in $(seq 1 100); do kill -0 "$master_pid" 2>/dev/null || break; sleep 0.1; done
+    for _ in $(seq 1 100); do kill -0 "$master_pid" 2>/dev/null || break; sleep 0.1 || true; done
     kill -KILL "$master_pid" 2>/dev/null || true
     wait "$master_pid" 2>/dev/null || true
   fi
   # Workers that exited by themselves (a goodbye from the master, or a failure) are collected with
   # their status; the rest are stopped.
   for pid in "${worker_pids[@]}"; do
-    kill -0 "$pid" 2>/dev/null || { local rc=0; wait "$pid" 2>/dev/null || rc=$?; worker_exited "$pid" "$rc"; }
+    kill -0 "$pid" 2>/dev/null || { local rc=0; wait "$pid" 2>/dev/null || rc=$?; worker_exited "$pid" "$rc" || true; }
   done
   for pid in "${worker_pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  # 5 s for all of them together, then KILL.
+  for _ in $(seq 1 50); do
+    local alive=0
+    for pid in "${worker_pids[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1 && break; done
+    [ "$alive" = 1 ] || break
+    sleep 0.1 || true
+  done
   for pid in "${worker_pids[@]}"; do
-    for _ in $(seq 1 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
     kill -KILL "$pid" 2>/dev/null || true
     wait "$pid" 2>/dev/null || true
   done
   if [ "$status" -eq 0 ] && [ "$workers_failed" -gt 0 ]; then
     echo "launch-local: $workers_failed worker$([ "$workers_failed" = 1 ] || echo s) failed" >&2
+    status=1
+  elif [ "$status" -eq 0 ] && [ "$stopped_for_workers" = 1 ]; then
+    echo "launch-local: the run was stopped for want of workers" >&2
     status=1
   fi
   if [ "$status" -ne 0 ] && [ "$workers_started" = 1 ]; then
@@ -206,24 +229,32 @@ cleanup() {
   fi
   exit "$status"
 }
+stopped_for_workers=0
 trap cleanup EXIT
 # The master and the workers run in sessions of their own, so a signal to this script's process
 # group (Ctrl-C, `kill %1`, `timeout`, a supervisor) reaches only the script, which passes each
 # SIGINT or SIGTERM on to the master exactly once: the first makes it finish the frames in flight
 # with the workers, a second abandons them. One that comes before the master is started is passed
-# on as soon as it is (before the master has loaded the scene, it simply ends it).
+# on as soon as it is (before the master has loaded the scene, it simply ends it). The script's
+# own stops (workers missing, below) count as such signals too. Short commands the script runs
+# meanwhile (sleep, tail) are in the group and die of a Ctrl-C: `|| true` keeps `set -e` from
+# ending the script there.
 interrupted=0
 signals=0
 pending=()
+# Sends SIGTERM or SIGINT to the master as the next signal of the count above.
+signal_master() {
+  signals=$((signals + 1))
+  if [ -n "$master_pid" ]; then kill -"$1" "$master_pid" 2>/dev/null || true; else pending+=("$1"); fi
+}
 forward() {
   interrupted=1
-  signals=$((signals + 1))
-  if [ "$signals" -eq 1 ]; then
+  if [ "$signals" -eq 0 ]; then
     echo "launch-local: SIG$1: stopping (the master finishes the frames in flight; signal again to abandon them)" >&2
   else
     echo "launch-local: SIG$1 again: the master abandons the frames in flight" >&2
   fi
-  if [ -n "$master_pid" ]; then kill -"$1" "$master_pid" 2>/dev/null || true; else pending+=("$1"); fi
+  signal_master "$1"
 }
 trap 'forward INT' INT
 trap 'forward TERM' TERM
@@ -234,12 +265,13 @@ for sig in "${pending[@]}"; do kill -"$sig" "$master_pid" 2>/dev/null || true; d
 # The master loads the scene before it listens: however long that takes, while it runs.
 waited=0
 until [ -s "$run_dir/address" ]; do
-  kill -0 "$master_pid" 2>/dev/null || { rc=0; wait "$master_pid" || rc=$?; exit "$rc"; }
-  sleep 0.1
+  kill -0 "$master_pid" 2>/dev/null || { rc=0; wait "$master_pid" || rc=$?; master_pid=""; exit "$rc"; }
+  sleep 0.1 || true
   waited=$((waited + 1))
   [ $((waited % 300)) -ne 0 ] || echo "launch-local: waiting for the master to load the scene and listen ($((waited / 10)) s)" >&2
 done
-address="$(cat "$run_dir/address")"
+address=""
+read -r address < "$run_dir/address" || true
 echo "launch-local: master on $address; starting $workers worker$([ "$workers" = 1 ] || echo s) with $threads" \
   "thread$([ "$threads" = 1 ] || echo s) each (logs in $run_dir)"
 workers_started=1
@@ -250,38 +282,57 @@ for i in $(seq 1 "$workers"); do
   worker_name[$!]="local-$i"
 done
 
+# With fewer workers than --min-workers the master waits for ever (it starts only with them) or
+# goes on with fewer; with none it renders nothing. One SIGTERM, never a second: it finishes the
+# frames in flight (or, with no worker, abandons them after its --drain-seconds) and writes every
+# finished frame, also when the run was ending anyway.
+judge_workers() {
+  local left=${#worker_pids[@]}
+  { [ "$left" -lt "$min_workers" ] && [ "$signals" -eq 0 ]; } || return 0
+  if [ "$left" -eq 0 ]; then
+    echo "launch-local: no worker left; stopping the master (frames in flight are abandoned after its --drain-seconds)" >&2
+  else
+    echo "launch-local: $left worker$([ "$left" = 1 ] || echo s) left, fewer than --min-workers $min_workers; stopping the master (it finishes the frames in flight)" >&2
+  fi
+  stopped_for_workers=1
+  signal_master TERM
+}
+
 # Wait for the master or a worker, whichever exits first. A trapped signal cuts `wait` short
 # (status 128 + signal, `done_pid` unset) whether or not they still run: wait again then; an
 # exited process's status stays there to be collected.
 status=0
-stopped=0
 while :; do
+  # bash drops a job killed by a signal while the script was not waiting (it reports it), and
+  # `wait -n` no longer sees it; `wait PID` still has its status.
+  if ! kill -0 "$master_pid" 2>/dev/null; then
+    rc=0
+    wait "$master_pid" 2>/dev/null || rc=$?
+    status=$rc
+    master_pid=""
+    break
+  fi
+  for pid in "${worker_pids[@]}"; do
+    if ! kill -0 "$pid" 2>/dev/null; then
+      rc=0
+      wait "$pid" 2>/dev/null || rc=$?
+      worker_exited "$pid" "$rc" || judge_workers
+    fi
+  done
   interrupted=0
   rc=0
   done_pid=""
   wait -n -p done_pid "$master_pid" "${worker_pids[@]}" || rc=$?
   if [ -z "${done_pid:-}" ]; then
-    [ "$interrupted" -eq 1 ] && continue
-    break  # nothing left to wait for
+    [ "$interrupted" -eq 1 ] || sleep 0.1 || true  # (nothing to wait for: collected above next)
+    continue
   fi
   if [ "$done_pid" = "$master_pid" ]; then
     status=$rc
     master_pid=""
     break
   fi
-  worker_exited "$done_pid" "$rc"
-  [ "$rc" -ne 0 ] || continue  # a goodbye: the master is ending
-  # The master starts only with --min-workers ready, and renders nothing without any.
-  if [ ${#worker_pids[@]} -eq 0 ]; then
-    echo "launch-local: no worker left; stopping the master (its frames in flight are abandoned)" >&2
-    kill -TERM "$master_pid" 2>/dev/null || true
-    sleep 0.2
-    kill -TERM "$master_pid" 2>/dev/null || true
-  elif [ ${#worker_pids[@]} -lt "$min_workers" ] && [ "$stopped" = 0 ]; then
-    echo "launch-local: ${#worker_pids[@]} worker$([ ${#worker_pids[@]} = 1 ] || echo s) left, fewer than --min-workers $min_workers; stopping the master (it finishes the frames in flight)" >&2
-    kill -TERM "$master_pid" 2>/dev/null || true
-    stopped=1
-  fi
+  worker_exited "$done_pid" "$rc" || judge_workers
 done
 [ "$status" -eq 0 ] || echo "launch-local: rtc-master exited with status $status" >&2
 exit "$status"

@@ -1812,6 +1812,14 @@ def _launcher_env(c):
     return dict(os.environ, RTC_BUILD_DIR=os.path.dirname(os.path.dirname(os.path.abspath(c.args.master))), TMPDIR=c.tmp)
 
 
+def _kill_quietly(pid):
+    """SIGKILL to a pid found a moment ago, which may have exited since."""
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def _launcher_processes(c, log):
     """pids of the master and workers of the launcher run that printed `log`."""
     m = re.search(r"launch-local: master on (\S+);", log)
@@ -1838,7 +1846,15 @@ def _run_launcher(c, name, extra, interrupt, scene=None, workers="2", env=None):
     try:
         if interrupt:
             wait_for(lambda: re.search(r"frame \d+ \[seq", text()) or p.poll() is not None, 60, "the first frame")
-            if interrupt == "term":
+            if interrupt == "kill-worker":
+                # local-1 dies as of a crash: SIGKILL, while the script and the master run on.
+                addr = re.search(r"launch-local: master on (\S+);", text()).group(1)
+                victims = [pid for pid in _processes_with(f"--connect {addr}") if pid in _processes_with("--name local-1 ")]
+                if not victims:
+                    fail(f"no worker local-1 to kill:\n{text()}")
+                for pid in victims:
+                    _kill_quietly(pid)
+            elif interrupt == "term":
                 os.kill(p.pid, signal.SIGTERM)
             elif interrupt == "term-group":
                 os.killpg(p.pid, signal.SIGTERM)
@@ -1853,7 +1869,7 @@ def _run_launcher(c, name, extra, interrupt, scene=None, workers="2", env=None):
             os.killpg(p.pid, signal.SIGKILL)
             p.wait()
             for pid in _launcher_processes(c, text()):
-                os.kill(pid, signal.SIGKILL)
+                _kill_quietly(pid)
     out = text()
     if not re.search(r"launch-local: master on (\S+);", out):
         fail(f"launch-local.sh printed no master address:\n{out}")
@@ -1864,7 +1880,7 @@ def _run_launcher(c, name, extra, interrupt, scene=None, workers="2", env=None):
     left = _launcher_processes(c, out)
     if left:
         for pid in left:
-            os.kill(pid, signal.SIGKILL)
+            _kill_quietly(pid)
         fail(f"processes left behind by launch-local.sh: {left}")
     return rc, out
 
@@ -1993,17 +2009,18 @@ def case_launch_local_failures(c):
         c.expect_frames_equal(out, "m", ref, range(0, 2), "png")
     print("--token-file and --tls-cert reached the workers: 2 frames each, identical to rtc-render's")
 
-    # Workers that fail: a build folder with the real master and a worker that fails as local-1
-    # (or as every worker), the real one otherwise.
+    # Workers that fail or leave: a build folder with the real master and a worker that fails
+    # (status 3) or leaves (status 0, as when stopped from outside) as local-1 (or as every
+    # worker), the real one otherwise.
     fake = c.mkdir("fake-build")
     os.makedirs(os.path.join(fake, "master"))
     os.makedirs(os.path.join(fake, "worker"))
     os.symlink(os.path.abspath(c.args.master), os.path.join(fake, "master", "rtc-master"))
-    for failing, tag in (("local-1", "one"), ("local-*", "all")):
+    for failing, status, tag in (("local-1", 3, "one"), ("local-*", 3, "all"), ("local-1", 0, "one-leaves")):
         wrapper = os.path.join(fake, "worker", "rtc-worker")
         with open(wrapper, "w", encoding="utf-8") as f:
             f.write("#!/usr/bin/env bash\n"
-                    f'for a in "$@"; do [[ "$a" == {failing} ]] && {{ echo "pretend failure of $a: no GPU" >&2; exit 3; }}; done\n'
+                    f'for a in "$@"; do [[ "$a" == {failing} ]] && {{ echo "pretend failure of $a: no GPU" >&2; exit {status}; }}; done\n'
                     f'exec {os.path.abspath(c.args.worker)} "$@"\n')
         os.chmod(wrapper, 0o755)
         env = dict(_launcher_env(c), RTC_BUILD_DIR=fake)
@@ -2012,18 +2029,38 @@ def case_launch_local_failures(c):
         took = time.monotonic() - started
         if rc != 1:
             fail(f"launch-local.sh with {tag} worker(s) failing: exit {rc}, expected 1:\n{log}")
-        if not re.search(r"worker local-1 \(pid \d+\) exited with status 3; the end of its log", log) or \
-                "  | pretend failure of local-1: no GPU" not in log:
-            fail(f"launch-local.sh did not report local-1's failure with its log:\n{log}")
-        if "fewer than --min-workers 2; stopping the master" not in log:
+        if status == 0:
+            if not re.search(r"worker local-1 \(pid \d+\) left \(stopped from outside\)", log) or \
+                    "launch-local: the run was stopped for want of workers" not in log:
+                fail(f"launch-local.sh did not report local-1 leaving and the run stopped for it:\n{log}")
+        elif not re.search(r"worker local-[12] \(pid \d+\) exited with status 3; the end of its log", log) or \
+                not re.search(r"  \| pretend failure of local-[12]: no GPU", log):
+            # (With every worker failing, either may be seen first, and the master may be gone
+            # before the other is: only one is sure to be reported.)
+            fail(f"launch-local.sh did not report a worker's failure with its log:\n{log}")
+        if "fewer than --min-workers 2; stopping the master" not in log and "no worker left; stopping the master" not in log:
             fail(f"launch-local.sh did not stop the master waiting for 2 workers:\n{log}")
-        if tag == "all" and not re.search(r"worker local-2 .*exited with status 3|no worker left", log):
-            fail(f"launch-local.sh did not report local-2's failure:\n{log}")
         m = re.search(r"worker logs kept in (\S+)", log)
         if not m or not os.path.isfile(os.path.join(m.group(1), "worker-1.log")):
             fail(f"launch-local.sh did not keep the worker logs:\n{log}")
-        print(f"{tag} worker(s) failing: exit 1 in {took:.1f} s, the failure and its log named, logs kept, "
-              f"nothing left behind")
+        print(f"{tag}: exit 1 in {took:.1f} s, the worker and its log named, logs kept, nothing left behind")
+
+    # A worker that dies mid-run (SIGKILL): named with its status, the master stopped with the
+    # frames in flight finished, exit 1.
+    out = c.mkdir("run-killed")
+    started = time.monotonic()
+    rc, log = _run_launcher(c, "launch-killed", [*MEDIUM, "--frames", "0-1999", "--temporal", "off",
+                                                 "--out", os.path.join(out, "m_####.png")], "kill-worker")
+    took = time.monotonic() - started
+    if rc != 1 or not re.search(r"worker local-1 \(pid \d+\) exited with status 137", log) or \
+            "fewer than --min-workers 2; stopping the master (it finishes the frames in flight)" not in log:
+        fail(f"launch-local.sh with local-1 killed: exit {rc}, expected 1, the worker named and the master stopped:\n{log}")
+    if "abandon" in log.replace("signal again to abandon", ""):
+        fail(f"launch-local.sh with local-1 killed: the master abandoned frames:\n{log}")
+    written = sorted(f for f in os.listdir(out) if f.endswith(".png"))
+    if not 1 <= len(written) < 2000:
+        fail(f"expected some but not all 2000 frames with local-1 killed, got {len(written)}")
+    print(f"local-1 killed mid-run: exit 1 in {took:.1f} s, {len(written)} frames written, nothing left behind")
 
 
 # ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------
