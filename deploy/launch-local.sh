@@ -176,7 +176,10 @@ worker_exited() {
   for p in "${worker_pids[@]}"; do [ "$p" = "$pid" ] || kept+=("$p"); done
   worker_pids=("${kept[@]}")
   if [ "$rc" -eq 0 ]; then
-    grep -q " said goodbye: " "$log" 2>/dev/null && return 0
+    # (Only grep's "not found" counts: a Ctrl-C may kill grep itself.)
+    local found=0
+    grep -q " said goodbye: " "$log" 2>/dev/null || found=$?
+    [ "$found" -eq 1 ] || return 0
     echo "launch-local: worker $name (pid $pid) left (stopped from outside)" >&2
     return 1
   fi
@@ -259,7 +262,9 @@ forward() {
 trap 'forward INT' INT
 trap 'forward TERM' TERM
 
-setsid "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
+# A non-interactive bash starts background jobs with SIGINT ignored, which the master would keep
+# until it sets its own handler after loading the scene: a Ctrl-C during the load was lost.
+env --default-signal=INT setsid "$build/master/rtc-master" "${scene[@]}" --listen 127.0.0.1:0 --ready-file "$run_dir/address" "${master_args[@]}" &
 master_pid=$!
 for sig in "${pending[@]}"; do kill -"$sig" "$master_pid" 2>/dev/null || true; done
 # The master loads the scene before it listens: however long that takes, while it runs.
@@ -312,17 +317,22 @@ while :; do
     master_pid=""
     break
   fi
+  collected=0
   for pid in "${worker_pids[@]}"; do
     if ! kill -0 "$pid" 2>/dev/null; then
       rc=0
       wait "$pid" 2>/dev/null || rc=$?
       worker_exited "$pid" "$rc" || judge_workers
+      collected=1
     fi
   done
+  # Only builtins between the last check and the wait: a process that dies while grep or tail
+  # runs is checked for again first.
+  [ "$collected" = 0 ] || continue
   interrupted=0
   rc=0
   done_pid=""
-  wait -n -p done_pid "$master_pid" "${worker_pids[@]}" || rc=$?
+  wait -n -p done_pid "$master_pid" "${worker_pids[@]}" 2>/dev/null || rc=$?
   if [ -z "${done_pid:-}" ]; then
     [ "$interrupted" -eq 1 ] || sleep 0.1 || true  # (nothing to wait for: collected above next)
     continue
