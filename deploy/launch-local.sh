@@ -121,13 +121,16 @@ while [ "$i" -lt ${#extra[@]} ]; do
     --out | --out=* | --out-dir | --out-dir=*) has_out=1 ;;
     --min-workers | --min-workers=*)
       option_value "$i" --min-workers
-      # The master waits for that many before it starts: more than this script starts is a wait for ever.
-      if [[ "$value" =~ ^[0-9]{1,6}$ ]] && [ "$((10#$value))" -gt "$workers" ]; then
-        echo "launch-local: --min-workers $value but $workers worker$([ "$workers" = 1 ] || echo s) started here: the master would wait for ever (give N >= $value)" >&2
-        exit 2
-      fi
       has_min_workers=1
-      if [[ "$value" =~ ^[0-9]{1,6}$ ]]; then min_workers="$((10#$value))"; fi ;;
+      # (A value that is no number is the master's to refuse.)
+      if [[ "$value" =~ ^[0-9]{1,6}$ ]]; then
+        min_workers="$((10#$value))"
+        # The master waits for that many before it starts: more than this script starts is a wait for ever.
+        if [ "$min_workers" -gt "$workers" ]; then
+          echo "launch-local: --min-workers $value but $workers worker$([ "$workers" = 1 ] || echo s) started here: the master would wait for ever (give N >= $value)" >&2
+          exit 2
+        fi
+      fi ;;
     --token-file | --token-file=*)
       # The workers must prove the same token.
       option_value "$i" --token-file
@@ -189,6 +192,22 @@ worker_exited() {
   return 1
 }
 
+# Collects every worker that has exited (`collected` says whether any had), by pid: bash drops a
+# job killed by a signal while the script was not waiting (it reports it), and `wait -n` no
+# longer sees it; `wait PID` still has its status. Returns 1 when the workers left must be judged.
+collect_exited_workers() {
+  local pid rc judge=0
+  collected=0
+  for pid in "${worker_pids[@]}"; do
+    kill -0 "$pid" 2>/dev/null && continue
+    rc=0
+    wait "$pid" 2>/dev/null || rc=$?
+    worker_exited "$pid" "$rc" || judge=1
+    collected=1
+  done
+  return "$judge"
+}
+
 cleanup() {
   local status=$?
   # Bounded (the master 10 s, then KILL; the workers 5 s): a signal now would end the script
@@ -203,9 +222,7 @@ cleanup() {
   fi
   # Workers that exited by themselves (a goodbye from the master, or a failure) are collected with
   # their status; the rest are stopped.
-  for pid in "${worker_pids[@]}"; do
-    kill -0 "$pid" 2>/dev/null || { local rc=0; wait "$pid" 2>/dev/null || rc=$?; worker_exited "$pid" "$rc" || true; }
-  done
+  collect_exited_workers || true
   for pid in "${worker_pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
   # 5 s for all of them together, then KILL.
   for _ in $(seq 1 50); do
@@ -308,8 +325,7 @@ judge_workers() {
 # exited process's status stays there to be collected.
 status=0
 while :; do
-  # bash drops a job killed by a signal while the script was not waiting (it reports it), and
-  # `wait -n` no longer sees it; `wait PID` still has its status.
+  # The master as the workers below (collect_exited_workers).
   if ! kill -0 "$master_pid" 2>/dev/null; then
     rc=0
     wait "$master_pid" 2>/dev/null || rc=$?
@@ -317,15 +333,7 @@ while :; do
     master_pid=""
     break
   fi
-  collected=0
-  for pid in "${worker_pids[@]}"; do
-    if ! kill -0 "$pid" 2>/dev/null; then
-      rc=0
-      wait "$pid" 2>/dev/null || rc=$?
-      worker_exited "$pid" "$rc" || judge_workers
-      collected=1
-    fi
-  done
+  collect_exited_workers || judge_workers
   # Only builtins between the last check and the wait: a process that dies while grep or tail
   # runs is checked for again first.
   [ "$collected" = 0 ] || continue

@@ -1885,6 +1885,26 @@ def _run_launcher(c, name, extra, interrupt, scene=None, workers="2", env=None):
     return rc, out
 
 
+def _launcher_refusal(c, args):
+    """deploy/launch-local.sh ARGS run to its end (an answer given before anything starts)."""
+    return subprocess.run(["bash", LAUNCHER, *args], cwd=c.tmp, env=_launcher_env(c), stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=60)
+
+
+def _frames_written_midrun(out, total, what):
+    """The number of PNG frames in `out` of a run of `total` stopped after its first: some, not all."""
+    written = [f for f in os.listdir(out) if f.endswith(".png")]
+    if not 1 <= len(written) < total:
+        fail(f"expected some but not all {total} frames {what}, got {len(written)}")
+    return len(written)
+
+
+def _expect_none_abandoned(log, what):
+    """The master stopped once, finishing its frames in flight: no second signal abandoned them."""
+    if "abandon" in log.replace("signal again to abandon", ""):
+        fail(f"launch-local.sh {what}: the master abandoned frames (a second signal):\n{log}")
+
+
 def case_launch_local(c):
     """deploy/launch-local.sh: 2 workers render frames identical to rtc-render's and nothing is
     left behind; Ctrl-C (SIGINT to the process group) finishes the frames in flight, exits 0,
@@ -1905,10 +1925,8 @@ def case_launch_local(c):
     # second in 1 of 5 runs on 2026-11-22).
     if not re.search(r"SIGINT: taking no new frames|shutting down: stopped by SIGINT", log):
         fail(f"the master did not report stopping on SIGINT:\n{log}")
-    written = sorted(f for f in os.listdir(out2) if f.endswith(".png"))
-    if not 1 <= len(written) < 24:
-        fail(f"expected some but not all 24 frames after Ctrl-C, got {len(written)}")
-    print(f"Ctrl-C after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+    written = _frames_written_midrun(out2, 24, "after Ctrl-C")
+    print(f"Ctrl-C after the first frame: {written} frames written, exit 0, nothing left behind")
     # SIGTERM to the script alone is passed on to the master, which finishes the frames in flight
     # as for Ctrl-C (before, the script only printed that it was stopping and waited for the run).
     # A SIGTERM to the whole group (kill %1, timeout) reaches the master once, through the script
@@ -1920,17 +1938,13 @@ def case_launch_local(c):
                                                       os.path.join(out_t, "m_####.png")], mode)
         if rc != 0 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
             fail(f"launch-local.sh after SIGTERM ({mode}): exit {rc}, expected 0 and the master stopping on SIGTERM:\n{log}")
-        if "abandon" in log.replace("signal again to abandon", ""):
-            fail(f"launch-local.sh after SIGTERM ({mode}): the master abandoned frames (a second signal):\n{log}")
-        written = sorted(f for f in os.listdir(out_t) if f.endswith(".png"))
-        if not 1 <= len(written) < 48:
-            fail(f"expected some but not all 48 frames after SIGTERM ({mode}), got {len(written)}")
-        print(f"SIGTERM ({mode}) after the first frame: {len(written)} frames written, exit 0, nothing left behind")
+        _expect_none_abandoned(log, f"after SIGTERM ({mode})")
+        written = _frames_written_midrun(out_t, 48, f"after SIGTERM ({mode})")
+        print(f"SIGTERM ({mode}) after the first frame: {written} frames written, exit 0, nothing left behind")
     # The master's listening address and ready file are the script's own: refused with a reason
     # before anything starts (the master used to fail on "--listen: At Most 1 required").
     for arg in ("--listen", "--ready-file=x"):
-        r = subprocess.run(["bash", LAUNCHER, "2", "--", *SMALL, arg, "127.0.0.1:0"], cwd=c.tmp, env=_launcher_env(c),
-                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+        r = _launcher_refusal(c, ["2", "--", *SMALL, arg, "127.0.0.1:0"])
         if r.returncode != 2 or f"launch-local: {arg} is this script's own" not in r.stderr or "master on" in r.stdout:
             fail(f"launch-local.sh -- {arg}: exit {r.returncode}, expected 2 with a reason:\n{r.stdout}{r.stderr}")
     print("--listen and --ready-file refused by the script with a reason")
@@ -1976,8 +1990,7 @@ def case_launch_local_failures(c):
     reach the workers (before, they were refused and the master waited for ever); misplaced
     options, --help and a --min-workers over N are answered at once."""
     def quick(args):
-        r = subprocess.run(["bash", LAUNCHER, *args], cwd=c.tmp, env=_launcher_env(c), stdin=subprocess.DEVNULL,
-                           capture_output=True, text=True, timeout=60)
+        r = _launcher_refusal(c, args)
         return r.returncode, r.stdout + r.stderr
     rc, log = quick(["--help"])
     if rc != 0 or "Usage: ./deploy/launch-local.sh [N] [SCENE]" not in log or "master on" in log:
@@ -2055,12 +2068,9 @@ def case_launch_local_failures(c):
     if rc != 1 or not re.search(r"worker local-1 \(pid \d+\) exited with status 137", log) or \
             "fewer than --min-workers 2; stopping the master (it finishes the frames in flight)" not in log:
         fail(f"launch-local.sh with local-1 killed: exit {rc}, expected 1, the worker named and the master stopped:\n{log}")
-    if "abandon" in log.replace("signal again to abandon", ""):
-        fail(f"launch-local.sh with local-1 killed: the master abandoned frames:\n{log}")
-    written = sorted(f for f in os.listdir(out) if f.endswith(".png"))
-    if not 1 <= len(written) < 2000:
-        fail(f"expected some but not all 2000 frames with local-1 killed, got {len(written)}")
-    print(f"local-1 killed mid-run: exit 1 in {took:.1f} s, {len(written)} frames written, nothing left behind")
+    _expect_none_abandoned(log, "with local-1 killed")
+    written = _frames_written_midrun(out, 2000, "with local-1 killed")
+    print(f"local-1 killed mid-run: exit 1 in {took:.1f} s, {written} frames written, nothing left behind")
 
 
 # ---- temporal coherence (issue 7; ctest label temporal) ----------------------------------------
