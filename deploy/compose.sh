@@ -2,7 +2,8 @@
 # Docker Compose on deploy/docker-compose.yml with what the file needs made first: the frames
 # folder and a random token (made once, mode 600), both owned by the user the containers run as
 # (yours; the image's rtc user 10001 when you are root). Runs `docker compose` (v2) when present,
-# else `docker-compose` (v1), with your arguments.
+# else `docker-compose` (v1), with your arguments. `up` in the foreground then exits with the
+# master's status (compose's own says nothing of it), naming the master or a worker that failed.
 # Usage: ./deploy/compose.sh up --build --scale worker=3     # frames: out/compose/default_####.png
 #        ./deploy/compose.sh logs master;  ./deploy/compose.sh down
 # Env: RTC_FRAMES_DIR (out/compose), RTC_TOKEN_FILE (out/compose-token), and the settings listed
@@ -42,4 +43,86 @@ elif [ "$(stat -c %u "$frames_dir")" != "$RTC_UID" ] && [ ! -w "$frames_dir" ]; 
   exit 1
 fi
 
-exec "${compose[@]}" -f "$root/deploy/docker-compose.yml" "$@"
+compose+=(-f "$root/deploy/docker-compose.yml")
+
+# `up` in the foreground (no -d) returns when every container has stopped, with a status that
+# says nothing of theirs (docker-compose v1 exits 0 when the master failed). Every other command
+# is compose's alone.
+globals=() foreground_up=0
+for ((i = 1; i <= $#; i++)); do
+  if [ "${!i}" = up ]; then
+    foreground_up=1
+    for arg in "${@:i+1}"; do
+      case "$arg" in
+        -d|--detach|-[!-]*d*|--exit-code-from|--exit-code-from=*|--abort-on-container-exit|--no-start|-h|--help)
+          foreground_up=0 ;;
+      esac
+    done
+    break
+  fi
+  globals+=("${!i}")
+done
+[ "$foreground_up" = 1 ] || exec "${compose[@]}" "$@"
+
+# Compose runs in a session of its own: a Ctrl-C or a SIGTERM reaches it once, from here (it stops
+# the containers; the master finishes the frames in flight), and a second one forces it, as
+# compose's own message says.
+signalled=""
+forward() {
+  signalled="$1"
+  kill -s "$1" "$compose_pid" 2>/dev/null || true
+}
+trap 'forward INT' INT
+trap 'forward TERM' TERM
+setsid "${compose[@]}" "$@" &
+compose_pid=$!
+status=0
+wait "$compose_pid" || status=$?
+while kill -0 "$compose_pid" 2>/dev/null; do
+  status=0
+  wait "$compose_pid" || status=$?
+done
+trap - INT TERM
+
+# Then each container's own status: the master's is the run's, and a worker that failed is named.
+# (not one-off containers of `compose.sh run`)
+exit_of() {
+  docker inspect -f '{{index .Config.Labels "com.docker.compose.oneoff"}} {{.State.Status}} {{.State.ExitCode}} {{.Name}}' "$1" 2>/dev/null |
+    grep -iv '^true ' | cut -d' ' -f2- || true
+}
+log_tail() { docker logs --tail 6 "$1" 2>&1 | sed 's/^/  /' >&2 || true; }
+master_status=0 worker_failed=0 master_seen=0
+for id in $("${compose[@]}" "${globals[@]}" ps -a -q master 2>/dev/null || true); do
+  read -r state code name <<<"$(exit_of "$id")"
+  [ -n "${state:-}" ] || continue
+  master_seen=1
+  name="${name#/}"
+  if [ "$state" != exited ] && [ "$state" != dead ]; then
+    echo "compose: the master ($name) is $state" >&2
+  elif [ "$code" != 0 ]; then
+    echo "compose: the master ($name) exited with status $code; the end of its log:" >&2
+    log_tail "$id"
+    master_status="$code"
+  else
+    echo "compose: the master ($name) exited with status 0; frames and stats.jsonl are in $frames_dir"
+  fi
+done
+for id in $("${compose[@]}" "${globals[@]}" ps -a -q worker 2>/dev/null || true); do
+  read -r state code name <<<"$(exit_of "$id")"
+  if { [ "${state:-}" = exited ] || [ "${state:-}" = dead ]; } && [ "$code" != 0 ]; then
+    echo "compose: worker ${name#/} exited with status $code; the end of its log:" >&2
+    log_tail "$id"
+    worker_failed=1
+  fi
+done
+[ "$master_seen" = 1 ] || { echo "compose: no master container was made" >&2; [ "$status" != 0 ] || status=1; }
+# The status: a signal's (130, 143), else the master's when it failed, else compose's own when it
+# failed, else 1 when a worker failed.
+if [ -n "$signalled" ]; then
+  echo "compose: stopped by SIG$signalled" >&2
+  [ "$signalled" = INT ] && exit 130
+  exit 143
+fi
+[ "$master_status" = 0 ] || exit "$master_status"
+[ "$status" = 0 ] || exit "$status"
+exit "$worker_failed"

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <new>
 #include <optional>
 #include <string>
 
@@ -105,7 +106,25 @@ int run(int argc, char** argv) {
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-master")) return *status;
+  // A ready file left by a master that was killed outright (SIGKILL gives it no time to remove
+  // it) would say that this one listens while it is still loading its scene: it goes first,
+  // whatever else fails (said once logging is set up).
+  bool removed_ready_file = false;
+  if (!o.ready_file.empty()) {
+    std::error_code ec;
+    const std::filesystem::file_status status = std::filesystem::symlink_status(o.ready_file, ec);
+    if (std::filesystem::is_directory(status)) throw rtc::Error("--ready-file: " + o.ready_file + " is a folder");
+    if (std::filesystem::exists(status)) {
+      if (!std::filesystem::remove(o.ready_file, ec)) {
+        throw rtc::Error("--ready-file: cannot remove " + o.ready_file + ", left by an earlier run: " + ec.message());
+      }
+      removed_ready_file = true;
+    }
+  }
   rtc::init_logging(log_level);
+  if (removed_ready_file) {
+    spdlog::warn("--ready-file: removed {}, left by an earlier run (written again once this master listens)", o.ready_file);
+  }
 
   // Options are checked before the (possibly long) scene load.
   const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
@@ -210,7 +229,13 @@ int run(int argc, char** argv) {
                     frame_bytes * held, "use a smaller --width/--height or fewer --frames-in-flight");
   // With --loop files are numbered by sequence (0, 1, ...), not by scene frame.
   if (!o.out_pattern.empty()) {
-    (void)rtc::check_output_pattern(o.out_pattern, o.loop_seconds > 0 ? 0 : frames.first, o.multiple_frames);
+    // Every frame's name (with --loop: the first's; the run has no last).
+    const int first_file = o.loop_seconds > 0 ? 0 : frames.first;
+    const std::filesystem::path first_name =
+        rtc::check_output_pattern(o.out_pattern, first_file, o.loop_seconds > 0 ? first_file : frames.last, o.multiple_frames);
+    if (const std::string problem = rtc::output_size_problem(first_name, scene.width, scene.height); !problem.empty()) {
+      throw rtc::Error("--out: " + first_name.string() + ": " + problem);
+    }
   }
   return rtc::run_master(scene, o);
 }
@@ -220,6 +245,9 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     return run(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "rtc-master: error: out of memory (std::bad_alloc): the process may use less memory than it needs here (ulimit -v, a container's limit)\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rtc-master: error: %s\n", e.what());
     return 1;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <new>
 #include <optional>
 #include <string>
 
@@ -176,18 +177,33 @@ int run(int argc, char** argv) {
   const rtc::FrameRange frames = requested_frames.value_or(rtc::FrameRange{scene.animation.frame_begin, scene.animation.frame_end});
   const bool multiple = frames.last > frames.first;
   rtc::check_frames_to_render(scene, frames.first, frames.last, scene_options);
-  // Each frame is held whole: RGBA float, and depth and normals unless both are left out. Checked
-  // before the default output folder is made, so a refused run leaves nothing behind.
-  const bool aovs = !(no_depth && no_normal);
-  rtc::check_memory("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame",
-                    rtc::Image::bytes(scene.width, scene.height, aovs, aovs),
-                    aovs ? "use a smaller --width/--height, or --no-depth --no-normal" : "use a smaller --width/--height");
-  if (out_pattern.empty()) {
-    out_pattern = "out/" + rtc::file_stem_for(scene.name) + (multiple ? "_####.png" : ".png");
-    std::filesystem::create_directories("out");
+  const bool default_out = out_pattern.empty();
+  if (default_out) out_pattern = "out/" + rtc::file_stem_for(scene.name) + (multiple ? "_####.png" : ".png");
+  const std::filesystem::path first_name(rtc::expand_frame_pattern(out_pattern, frames.first, multiple));
+  // Depth and normals are kept for EXR files only, unless both are left out.
+  const bool aovs = rtc::image_file_kind(first_name) == rtc::ImageFileKind::Exr && !(no_depth && no_normal);
+  rtc::ImageWriteOptions write_options;
+  write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
+  write_options.write_depth = !no_depth;
+  write_options.write_normal = !no_normal;
+  write_options.exr_compression = *exr_compression;
+  if (const std::string problem = rtc::output_size_problem(first_name, scene.width, scene.height); !problem.empty()) {
+    throw rtc::Error("--out: " + first_name.string() + ": " + problem);
   }
-  // A bad pattern, extension or output folder is reported before anything is rendered.
-  const std::filesystem::path first_out = rtc::check_output_pattern(out_pattern, frames.first, multiple);
+  // Each frame is held whole (RGBA float, and depth and normals for EXR unless both are left
+  // out), and writing it takes a buffer for the file and, for 8-bit files, a copy. Checked
+  // before the default output folder is made, so a refused run leaves nothing behind.
+  rtc::check_memory("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) + " frame and its writing",
+                    rtc::Image::bytes(scene.width, scene.height, aovs, aovs) +
+                        rtc::image_write_scratch_bytes(first_name, scene.width, scene.height, aovs, write_options),
+                    aovs ? "use a smaller --width/--height, or --no-depth --no-normal" : "use a smaller --width/--height");
+  if (default_out) {
+    std::error_code ec;
+    std::filesystem::create_directories("out", ec);
+    if (ec) throw rtc::Error("cannot make out/, the output folder when no --out is given: " + ec.message() + " (give --out)");
+  }
+  // A bad pattern, extension or output folder, for any frame, is reported before anything is rendered.
+  const std::filesystem::path first_out = rtc::check_output_pattern(out_pattern, frames.first, frames.last, multiple);
   if (rtc::image_file_kind(first_out) != rtc::ImageFileKind::Exr) {
     // Options that only EXR files take are not silently dropped.
     for (const auto& [given, option] : {std::pair{exr_float, "--exr-float"}, std::pair{no_depth, "--no-depth"},
@@ -212,11 +228,6 @@ int run(int argc, char** argv) {
                single_rays ? std::string("single rays") : rtc::isa_packet_description(renderer.isa()),
                threads > 0 ? threads : static_cast<int>(tbb::info::default_concurrency()));
 
-  rtc::ImageWriteOptions write_options;
-  write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
-  write_options.write_depth = !no_depth;
-  write_options.write_normal = !no_normal;
-  write_options.exr_compression = *exr_compression;
   const bool tty = isatty(STDERR_FILENO) != 0;
   std::unique_ptr<rtc::TemporalFrames> temporal;
   if (rtc::temporal_for(renderer.scene(), rtc::parse_temporal_mode(temporal_text)) && multiple) {
@@ -309,6 +320,9 @@ int main(int argc, char** argv) {
     return run(argc, argv);
   } catch (const rtc::Error& e) {
     std::fprintf(stderr, "rtc-render: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "rtc-render: error: out of memory (std::bad_alloc): the process may use less memory than it needs here (ulimit -v, a container's limit)\n");
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rtc-render: error: %s\n", e.what());

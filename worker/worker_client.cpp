@@ -285,7 +285,7 @@ class WorkerClient {
       : options_(options),
         threads_(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))),
         target_(net::parse_host_port(options.connect, "--connect")),
-        signals_(io_, SIGINT, SIGTERM),
+        signals_(io_, SIGINT, SIGTERM, SIGHUP),
         retry_timer_(io_),
         watchdog_(io_),
         pool_(threads_,
@@ -324,7 +324,11 @@ class WorkerClient {
     lost_since_ = Clock::now();
     signals_.async_wait([this](const asio::error_code& ec, int signal) {
       if (ec) return;
-      spdlog::info("{}: saying goodbye to the master and exiting", signal_name(signal));
+      if (conn_ && welcomed_) {
+        spdlog::info("{}: saying goodbye to the master and exiting", signal_name(signal));
+      } else {
+        spdlog::info("{}: exiting (not connected to a master)", signal_name(signal));
+      }
       exit_code_ = 0;
       finish(true);
     });
@@ -385,8 +389,16 @@ class WorkerClient {
     if (finished_) return;
     const double down_s = std::chrono::duration<double>(Clock::now() - lost_since_).count();
     if (options_.retry_seconds > 0 && down_s >= options_.retry_seconds) {
-      spdlog::error("master at {} unreachable for {:.1f} s (last: {}); giving up (--retry-seconds {})", options_.connect,
-                    down_s, why, options_.retry_seconds);
+      // The last try reached something that was no working master (garbage, a refused
+      // handshake) or lost it: not "unreachable".
+      if (connected) {
+        spdlog::error("no working master at {} for {:.1f} s (the last connection was made, then: {}); giving up "
+                      "(--retry-seconds {})",
+                      options_.connect, down_s, why, options_.retry_seconds);
+      } else {
+        spdlog::error("master at {} unreachable for {:.1f} s (last: {}); giving up (--retry-seconds {})", options_.connect,
+                      down_s, why, options_.retry_seconds);
+      }
       exit_code_ = 1;
       return finish(false);
     }

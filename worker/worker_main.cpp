@@ -1,6 +1,7 @@
 // rtc-worker: connects to an rtc-master, receives its scene and renders the tiles it is given
 // on all cores, streaming the pixels back; reconnects with back-off when the master goes away.
 #include <cstdio>
+#include <new>
 #include <optional>
 #include <string>
 
@@ -13,6 +14,8 @@
 #include "common/base/process_memory.h"
 #include "common/scene/scene_cli.h"
 #include "protocol/auth.h"
+#include "protocol/message.h"
+#include "protocol/net/connection.h"
 #include "worker/worker_client.h"
 
 namespace {
@@ -51,6 +54,17 @@ int run(int argc, char** argv) {
     }
   }
   o.kd_clip = rtc::parse_kd_clip(kd_clip);
+  if (rtc::net::parse_host_port(o.connect, "--connect").port == 0) {
+    throw rtc::Error("--connect " + o.connect + ": port 0 is not a port a master listens on");
+  }
+  if (!o.tls_server_name.empty() && o.tls_ca.empty()) {
+    throw rtc::Error("--tls-server-name " + o.tls_server_name +
+                     " applies to TLS only: give --tls-ca too (the certificates to trust the master's by)");
+  }
+  if (o.name.size() > rtc::protocol::kMaxName) {
+    throw rtc::Error("--name: " + std::to_string(o.name.size()) + " bytes, over the limit of " +
+                     std::to_string(rtc::protocol::kMaxName));
+  }
   if (!token_file.empty()) o.token = rtc::protocol::read_token_file_warning_if_weak(token_file);
   return rtc::run_worker(o);
 }
@@ -60,6 +74,9 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     return run(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "rtc-worker: error: out of memory (std::bad_alloc): the process may use less memory than it needs here (ulimit -v, a container's limit)\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rtc-worker: error: %s\n", e.what());
     return 1;

@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstddef>
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -23,6 +24,8 @@ namespace {
 constexpr std::size_t kMaxPrintfWidth = 10;
 constexpr std::size_t kInsertedWidth = 4;
 constexpr std::size_t kMaxStemBytes = 200;
+// NAME_MAX on Linux file systems.
+constexpr std::size_t kMaxFileNameBytes = 255;
 
 std::string zero_padded(int frame, std::size_t width) {
   std::string digits = std::to_string(frame);
@@ -147,25 +150,43 @@ std::string numbered_frame_pattern(const std::string& folder, std::string_view s
   return out + file_stem_for(scene_name) + "_%04d.png";
 }
 
-std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames) {
+std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, int last_frame,
+                                           bool multiple_frames) {
   const std::filesystem::path first(expand_frame_pattern(pattern, first_frame, multiple_frames));
-  // Where '#'s in the pattern's folder became the frame number, the message shows the pattern and
+  // Where '#'s in the pattern's folder become the frame number, the message shows the pattern and
   // says so (a folder with a '#' in its name is the likely intent).
   const std::size_t slash = pattern.rfind('/');
   const bool hashes = slash != std::string::npos && pattern.substr(0, slash).find('#') != std::string::npos &&
                       first.parent_path().string().find('#') == std::string::npos;
-  const auto bad = [&](const std::string& reason) {
-    return Error("--out: " + first.string() + ": " + reason +
-                 (hashes ? fmt::format(" (the pattern '{}' gives this name for frame {}: {})", pattern, first_frame, kHashHint)
-                         : std::string()));
-  };
   std::error_code ec;
-  if (std::filesystem::is_directory(first, ec)) throw bad("is a folder");
-  // write_image's own checks, then what only writing finds out.
-  if (const std::string problem = output_file_problem(first); !problem.empty()) throw bad(problem);
-  const std::filesystem::path folder = first.parent_path().empty() ? "." : first.parent_path();
-  if (::access(folder.c_str(), W_OK) != 0) {
-    throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
+  std::filesystem::path checked_folder;
+  bool first_checked = false;
+  // Every frame's name, so that no run stops halfway: a later frame's folder missing (a pattern
+  // in the folder's name), a later frame's name taken by a folder.
+  for (int frame = first_frame; frame <= std::max(first_frame, last_frame); ++frame) {
+    const std::filesystem::path path =
+        frame == first_frame ? first : std::filesystem::path(expand_frame_pattern(pattern, frame, multiple_frames));
+    const auto bad = [&](const std::string& reason) {
+      const bool later = frame != first_frame;
+      return Error("--out: " + path.string() + ": " + reason +
+                   (hashes ? fmt::format(" (the pattern '{}' gives this name for frame {}: {})", pattern, frame, kHashHint)
+                           : later ? fmt::format(" (frame {}'s name; the run's first is {})", frame, first.string())
+                                   : std::string()));
+    };
+    if (std::filesystem::is_directory(path, ec)) throw bad("is a folder");
+    const std::size_t name_bytes = path.filename().string().size();
+    if (name_bytes > kMaxFileNameBytes) {
+      throw bad(fmt::format("the file name is {} bytes; a name may have at most {}", name_bytes, kMaxFileNameBytes));
+    }
+    const std::filesystem::path folder = path.parent_path().empty() ? "." : path.parent_path();
+    if (first_checked && folder == checked_folder) continue;
+    first_checked = true;
+    checked_folder = folder;
+    // write_image's own checks, then what only writing finds out.
+    if (const std::string problem = output_file_problem(path); !problem.empty()) throw bad(problem);
+    if (::access(folder.c_str(), W_OK) != 0) {
+      throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
+    }
   }
   if (std::filesystem::exists(first, ec)) {
     spdlog::warn("--out: {} exists: {} overwritten", first.string(),

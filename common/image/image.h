@@ -116,6 +116,16 @@ enum class ImageFileKind { Exr, Png, Tiff, Jpeg, Ppm };
 /// folder that does not exist or is not a folder; empty when neither.
 [[nodiscard]] std::string output_file_problem(const std::filesystem::path& path);
 
+/// Why write_image cannot write a `width` x `height` frame to `path`'s format (JPEG: at most
+/// 65500 pixels a side); empty when it can. Known before rendering.
+[[nodiscard]] std::string output_size_problem(const std::filesystem::path& path, int width, int height);
+
+/// The memory write_image takes, besides the frame, to write a `width` x `height` frame to
+/// `path`'s format (with depth and normals when `aovs`): its buffer for the file, and the 8-bit
+/// copy of PNG, JPEG and PPM. For a memory check before rendering; 0 for an unknown format.
+[[nodiscard]] std::uint64_t image_write_scratch_bytes(const std::filesystem::path& path, int width, int height,
+                                                      bool aovs, const ImageWriteOptions& options);
+
 /// Reads the first subimage of any OpenImageIO-readable file as linear float RGBA: 8- and
 /// 16-bit integer files are sRGB-decoded on RGB (8-bit exactly, by srgb8_to_linear) unless
 /// the file says it is linear, float files are taken as linear; alpha is 1 when absent, gray
@@ -170,10 +180,12 @@ std::string file_stem_for(std::string_view name);
 /// ('#' too: the pattern is printf-style). rtc-master's --out-dir.
 std::string numbered_frame_pattern(const std::string& folder, std::string_view scene_name);
 
-/// `--out PATTERN` checked before anything is rendered: expand_frame_pattern's errors, a first
-/// frame's name that is a folder, output_file_problem's, or a folder this process cannot write
-/// to throw rtc::Error ("--out: <name>: <reason>"). Returns the first frame's name.
-std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, bool multiple_frames);
+/// `--out PATTERN` checked before anything is rendered, for every frame from `first_frame` to
+/// `last_frame`: expand_frame_pattern's errors, a frame's name that is a folder or longer than
+/// 255 bytes, output_file_problem's, or a folder this process cannot write to throw rtc::Error
+/// ("--out: <name>: <reason>"). Returns the first frame's name.
+std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, int last_frame,
+                                           bool multiple_frames);
 
 /// 64-bit FNV-1a over the width, height, which channels are present and the bits of every
 /// float (little-endian), as 16 lowercase hex digits: equal hashes mean equal frames bit for

@@ -209,9 +209,13 @@ class TempFile {
 fs::path temp_path_for(const fs::path& path) {
   // Same folder (so rename is atomic), hidden, unique per process and call, and keeping the
   // extension so nothing mistakes it for another format.
+  // The stem is cut to 200 bytes, so that the temporary name is no longer than a name may be
+  // (255 bytes) where the file's own name fits.
   static std::atomic<unsigned> counter{0};
-  const std::string name = fmt::format(".{}.tmp-{}-{}{}", path.stem().string(), ::getpid(),
-                                       counter.fetch_add(1), path.extension().string());
+  std::string stem = path.stem().string();
+  if (stem.size() > 200) stem.resize(200);
+  const std::string name = fmt::format(".{}.tmp-{}-{}{}", stem, ::getpid(), counter.fetch_add(1),
+                                       path.extension().string().substr(0, 16));
   return path.parent_path() / name;
 }
 
@@ -352,6 +356,46 @@ std::string output_file_problem(const fs::path& path) {
   return {};
 }
 
+std::string output_size_problem(const fs::path& path, int width, int height) {
+  // libjpeg stores 16-bit sizes and refuses more than 65500 (JPEG_MAX_DIMENSION) by ending the
+  // process through OpenImageIO.
+  constexpr int kMaxJpegSide = 65500;
+  if (image_file_kind(path) == FileKind::Jpeg && (width > kMaxJpegSide || height > kMaxJpegSide)) {
+    return fmt::format("a JPEG file holds at most {} pixels a side, and the frame is {}x{} (use .png, .exr or .tif, "
+                       "or a smaller --width/--height)",
+                       kMaxJpegSide, width, height);
+  }
+  return {};
+}
+
+std::uint64_t image_write_scratch_bytes(const fs::path& path, int width, int height, bool aovs,
+                                        const ImageWriteOptions& options) {
+  const std::optional<FileKind> kind = image_file_kind(path);
+  if (!kind) return 0;
+  const std::uint64_t pixels = static_cast<std::uint64_t>(std::max(width, 0)) * static_cast<std::uint64_t>(std::max(height, 0));
+  std::uint64_t file_bytes = 0;  // the pixels as the file stores them, uncompressed
+  std::uint64_t converted = 0;   // encode_srgb8's copy
+  switch (*kind) {
+    case FileKind::Exr: {
+      const std::uint64_t color = options.exr_type == ExrPixelType::Half ? 2 : 4;
+      file_bytes = pixels * (4 * color + (aovs && options.write_depth ? 4 : 0) + (aovs && options.write_normal ? 3 * color : 0));
+      break;
+    }
+    case FileKind::Tiff:
+      file_bytes = pixels * 16;
+      break;
+    case FileKind::Png:
+      file_bytes = converted = pixels * 4;
+      break;
+    case FileKind::Jpeg:
+    case FileKind::Ppm:
+      file_bytes = converted = pixels * 3;
+      break;
+  }
+  // write_image's buffer for the file: room for the uncompressed pixels, at most 1 GiB.
+  return converted + std::min<std::uint64_t>(file_bytes + (std::uint64_t{1} << 20), std::uint64_t{1} << 30);
+}
+
 void write_image(const fs::path& path, const Image& image, const ImageWriteOptions& options) {
   const std::string name = path.string();
   const auto fail = [&](const std::string& reason) {
@@ -359,6 +403,7 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
   };
   if (const std::string problem = shape_problem(image); !problem.empty()) throw fail(problem);
   if (const std::string problem = output_file_problem(path); !problem.empty()) throw fail(problem);
+  if (const std::string problem = output_size_problem(path, image.width, image.height); !problem.empty()) throw fail(problem);
   const FileFormat* format = find_format(path);
 
   Encoded encoded = encode(format->kind, image, options);

@@ -16,6 +16,8 @@
 // 0, usemtl, mtllib (several files per line allowed). o, g, s and display statements are
 // skipped quietly; l, p, free-form geometry and unknown keywords are skipped with a warning
 // (once per keyword). Indices must refer to vertices defined above the face.
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -125,6 +127,13 @@ class ObjReader {
   }
 
   MeshFile read() {
+    // OBJ is text: a NUL byte means another kind of file (a binary PLY or GLB named .obj, say),
+    // which would otherwise read as a flood of unknown statements before failing.
+    if (const std::size_t nul = text_.find('\0'); nul != std::string_view::npos) {
+      const auto line = static_cast<std::uint64_t>(std::count(text_.begin(), text_.begin() + static_cast<std::ptrdiff_t>(nul), '\n'));
+      throw_at(path_.string(), line + 1,
+               fmt::format("a NUL byte at offset {}: not an OBJ text file (a binary file with an .obj name?)", nul));
+    }
     // A rough estimate keeps reallocation off the profile: ~30 bytes per vertex line and
     // ~20 per face line in typical files.
     positions_.reserve(text_.size() / 60);
@@ -253,7 +262,7 @@ class ObjReader {
 
   void load_libraries(std::string_view names) {
     if (names.empty()) cursor_.fail("mtllib without a file name");
-    if (names.find('\0') != std::string_view::npos) cursor_.fail("mtllib: file name contains a NUL byte");
+    // (No NUL byte: read() refuses a file with one.)
     const fs::path folder = path_.parent_path();
     std::vector<std::string> files;
     std::error_code ec;
@@ -300,9 +309,11 @@ class ObjReader {
       spdlog::warn("{}:{}: OBJ statement {} skipped{}, here and below: rtc draws faces (f) only, not lines, points or "
                    "free-form curves and surfaces",
                    path_.string(), cursor_.line(), quoted(key), free_form ? " with the other free-form statements" : "");
-    } else {
-      spdlog::warn("{}:{}: unknown OBJ statement {} skipped, here and below", path_.string(), cursor_.line(),
-                   quoted(key));
+    } else if (++unknown_keys_ <= kMaxUnknownKeysSaid) {
+      spdlog::warn("{}:{}: unknown OBJ statement {} skipped, here and below{}", path_.string(), cursor_.line(),
+                   quoted(key),
+                   unknown_keys_ == kMaxUnknownKeysSaid ? "; further unknown statements are skipped unsaid (is this an OBJ file?)"
+                                                        : "");
     }
   }
 
@@ -322,6 +333,8 @@ class ObjReader {
   std::unordered_map<std::string, std::uint32_t> material_by_name_;
   std::unordered_set<std::string> warned_materials_;
   std::unordered_set<std::string> skipped_keys_;
+  static constexpr int kMaxUnknownKeysSaid = 10;
+  int unknown_keys_ = 0;
   bool missing_library_ = false;
 };
 

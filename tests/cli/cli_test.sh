@@ -292,17 +292,43 @@ case_bad_output_checked_first() {
 }
 
 case_frame_too_big_for_memory() {
-  # 32768x32768 with depth and normals holds 34.4 GB: refused up front where that is more than
-  # the machine has (the test machines have 24 GB), instead of being killed for memory later.
+  # 32768x32768 EXR with depth and normals holds 34.4 GB, and writing it takes 1.07 GB more:
+  # refused up front where that is more than the machine has (the test machines have 24 GB),
+  # instead of being killed for memory later.
   local avail_kb
   avail_kb=$(awk '/^MemAvailable:/ {print $2}' /proc/meminfo)
-  if [[ -z $avail_kb ]] || (( avail_kb * 1024 >= 34359738368 )); then
+  if [[ -z $avail_kb ]] || (( avail_kb * 1024 >= 35433480192 )); then
     echo "skipped: MemAvailable ${avail_kb:-unknown} kB is enough for the frame"
     exit 77
   fi
-  expect_error big_frame "a 32768x32768 frame needs at least 34.4 GB of memory" "--no-depth --no-normal" -- \
-    "$render" --frames 0 --width 32768 --height 32768 --out "$work/big.png"
-  [[ ! -e $work/big.png ]] || fail "an image was written"
+  expect_error big_frame "a 32768x32768 frame and its writing needs at least 35.4 GB of memory" "--no-depth --no-normal" -- \
+    "$render" --frames 0 --width 32768 --height 32768 --out "$work/big.exr"
+  [[ ! -e $work/big.exr ]] || fail "an image was written"
+}
+
+case_output_checked_for_every_frame() {
+  # Frame 1's folder is missing, frame 2's name is a folder: refused before frame 0 is rendered.
+  mkdir -p "$work/run_00" "$work/f_0002.png"
+  expect_error later_folder "--out" "$work/run_01/f.png" "does not exist" "gives this name for frame 1" -- \
+    "$render" --frames 0-1 --width 16 --height 16 --out "$work/run_##/f.png"
+  expect_error later_name "--out" "$work/f_0002.png: is a folder (frame 2's name" -- \
+    "$render" --frames 0-3 --width 16 --height 16 --out "$work/f_####.png"
+  [[ -z $(find "$work" -name '*.png' -type f) ]] || fail "a frame was written before a later frame's name was refused"
+  # A JPEG wider than libjpeg takes (65500 pixels): refused before rendering, with the way out
+  # (it ended the process from inside libjpeg after the frame was rendered).
+  printf 'v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 16 16\nl 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n' >"$work/tri.nff"
+  printf '{"mesh": "tri.nff", "resolution": [65501, 1], "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 45}}\n' >"$work/wide.json"
+  expect_error jpeg_wide "--out" "a JPEG file holds at most 65500 pixels a side, and the frame is 65501x1" -- \
+    "$render" "$work/wide.json" --out "$work/wide.jpg"
+  [[ ! -e $work/wide.jpg ]] || fail "the JPEG was written"
+  # No --out: the default folder out/ (here a file) cannot be made.
+  touch "$work/out"
+  cd "$work" || fail "cannot enter $work"
+  run default_out "$render" --frames 0 --width 16 --height 16
+  cd - >/dev/null || fail "cannot leave $work"
+  expect_rc default_out 1
+  expect_in default_out err "cannot make out/, the output folder when no --out is given"
+  expect_in default_out err "(give --out)"
 }
 
 case_degenerate_camera() {

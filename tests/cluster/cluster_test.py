@@ -26,6 +26,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import traceback
 import zlib
@@ -967,6 +968,63 @@ def case_worker_gives_up(c):
         fail(f"rtc-worker gave up after {elapsed:.1f} s, before its --retry-seconds 7")
     expect_log(w, r"unreachable", "that the master is unreachable", timeout=1)
     print(f"gave up after {elapsed:.1f} s")
+    # Refused at once, with the reason: options that could only ever fail or be ignored.
+    for i, (args, pattern) in enumerate([
+            (["--connect", "127.0.0.1:0"], r"--connect 127\.0\.0\.1:0: port 0 is not a port a master listens on"),
+            (["--tls-server-name", "render.example.org"], r"--tls-server-name render\.example\.org applies to TLS only: give --tls-ca too"),
+            (["--name", "n" * 257], r"--name: 257 bytes, over the limit of 256")]):
+        base = [] if args[0] == "--connect" else ["--connect", "127.0.0.1:9"]
+        p = c.spawn(f"refused-{i}", [c.args.worker, *base, "--retry-seconds", "5", *args])
+        rc = p.wait(10, f"refuse {args[0]}")
+        if rc != 1 or not re.search(pattern, p.log()):
+            fail(f"rtc-worker {args[0]}: {describe_rc(rc)}, expected exit status 1 and /{pattern}/ in:\n{p.log()}")
+    # SIGHUP, like SIGINT and SIGTERM: a clean exit 0, saying it was not connected.
+    with socket.socket() as closed:
+        closed.bind(("127.0.0.1", 0))
+        w = c.spawn("worker-hup", [c.args.worker, "--connect", f"127.0.0.1:{closed.getsockname()[1]}",
+                                   "--retry-seconds", "30", "--threads", "1"])
+        expect_log(w, r"not reachable", "its first try", timeout=10)
+        w.send(signal.SIGHUP)
+        rc = w.wait(10, "exit on SIGHUP")
+    if rc != 0:
+        fail(f"rtc-worker on SIGHUP: {describe_rc(rc)}, expected exit status 0")
+    expect_log(w, r"SIGHUP: exiting \(not connected to a master\)", "the SIGHUP", timeout=1)
+    print("refused: --connect :0, --tls-server-name without --tls-ca, a long --name; SIGHUP: exit 0")
+    # Reached every time, but no rtc master there (an HTTP answer): giving up says so, not
+    # "unreachable".
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(8)
+        listener.settimeout(0.2)
+        port = listener.getsockname()[1]
+        stop = threading.Event()
+
+        def serve():
+            while not stop.is_set():
+                try:
+                    conn, _ = listener.accept()
+                except OSError:
+                    continue
+                with conn:
+                    try:
+                        conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n")
+                    except OSError:
+                        pass
+
+        server = threading.Thread(target=serve, daemon=True)
+        server.start()
+        try:
+            w = c.spawn("worker-http", [c.args.worker, "--connect", f"127.0.0.1:{port}", "--retry-seconds", "1",
+                                        "--threads", "1"])
+            rc = w.wait(15, "give up on a server that is no rtc master")
+        finally:
+            stop.set()
+            server.join(5)
+    if rc != 1:
+        fail(f"rtc-worker against an HTTP server: {describe_rc(rc)}, expected exit status 1")
+    m = expect_log(w, r"no working master at 127\.0\.0\.1:\d+ for \d+\.\d s \(the last connection was made, then: .*"
+                      r"giving up", "the reason it gave up", timeout=1)
+    print(f"against an HTTP server: {m.string.strip()}")
 
 
 def case_bad_master(c):
@@ -1733,7 +1791,11 @@ def case_master_cli_errors(c):
         ([degenerate], rf"{re.escape(degenerate)}: frame 0: camera: eye and look_at coincide"),
     ]
     for i, (args, pattern) in enumerate(cases):
+        # A ready file as a master killed outright leaves it: each of these masters removes it
+        # first, though it fails before listening.
         ready = c.path(f"ready-{i}")
+        with open(ready, "w") as f:
+            f.write("127.0.0.1:1\n")
         p = c.spawn(f"master-{i}", [c.args.master, *SMALL, *args, "--listen", "127.0.0.1:0", "--ready-file", ready]
                     if "--listen" not in args else [c.args.master, *SMALL, *args, "--ready-file", ready])
         rc = p.wait(30, f"fail on {args}")
@@ -1741,10 +1803,22 @@ def case_master_cli_errors(c):
             fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1")
         if not re.search(pattern, p.log()):
             fail(f"rtc-master {' '.join(args)}: no message matching /{pattern}/ in:\n{p.log()}")
+        # (Logging is not set up when its level is refused.)
+        if "--log-level" not in args and not re.search(rf"--ready-file: removed {re.escape(ready)}, left by an earlier run", p.log()):
+            fail(f"rtc-master {' '.join(args)}: no word of the earlier run's ready file in:\n{p.log()}")
         # (The ready file goes when a master stops listening: its log says whether it listened.)
-        if os.path.exists(ready) or re.search(r"listening on", p.log()):
+        if re.search(r"listening on", p.log()):
             fail(f"rtc-master {' '.join(args)} started listening before failing")
+        if os.path.exists(ready):
+            fail(f"rtc-master {' '.join(args)}: {ready} is there after it failed (the earlier run's, or its own)")
         print(f"ok: {' '.join(args)} -> {pattern}")
+    folder = c.path("ready-folder")
+    os.makedirs(folder)
+    p = c.spawn("master-ready-folder", [c.args.master, *SMALL, "--listen", "127.0.0.1:0", "--ready-file", folder])
+    rc = p.wait(30, "fail on a --ready-file that is a folder")
+    if rc != 1 or not re.search(rf"--ready-file: {re.escape(folder)} is a folder", p.log()) or not os.path.isdir(folder):
+        fail(f"rtc-master --ready-file FOLDER: {describe_rc(rc)}, expected exit status 1 naming the folder, kept, in:\n{p.log()}")
+    print("ok: --ready-file FOLDER -> is a folder")
     # What CLI11 refuses is a usage error: exit 2, "rtc-master: error: ..." and the --help pointer.
     usage = [
         (["--token-file", ""], r"--token-file: the value is empty"),

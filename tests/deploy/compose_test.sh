@@ -3,10 +3,12 @@
 # when missing (deploy/make-base-image.sh), builds deploy/Dockerfile through docker-compose,
 # brings up a master and 3 workers (deploy/compose.sh) on the built-in scene plus one worker on
 # the host that joins through the master's published 127.0.0.1 port with the token, checks the
-# Docker health checks, and requires every frame on the host to equal rtc-render's bit for bit.
-# Then `down`, and everything it made goes: containers, network, images, base images, the
-# engine it started (with its data, mounts and interfaces). Prints MEASURE lines (build time,
-# image size, start-up). Exit 0 pass, 1 fail, 77 skip (only when no engine can be started).
+# Docker health checks, and requires every frame on the host to equal rtc-render's bit for bit
+# and `compose.sh up` (in the foreground) to exit 0. Then `down`; a run whose master fails must
+# exit with its status, and one whose worker fails with 1, each naming what failed. On every exit
+# path everything it made goes: containers, network, images, base images, the engine it started
+# (with its data, mounts and interfaces). Prints MEASURE lines (build time, image size, start-up).
+# Exit 0 pass, 1 fail, 77 skip (only when no engine can be started).
 #
 # usage: compose_test.sh --render RTC_RENDER --worker RTC_WORKER --oiiotool OIIOTOOL [--keep]
 #   --keep  leave the work folder (logs, frames) and print where it is
@@ -257,10 +259,18 @@ in_background timeout 120 "$render" --frames "$frames" --out "$work/ref/r_####.p
 t_up=$SECONDS
 up_start="$(date +%s.%N)"
 compose_up=1
-compose up -d --no-build --scale worker="$workers" > "$work/up.log" 2>&1 ||
-  { cat "$work/up.log" >&2; fail "compose up failed"; }
-master_id="$(compose ps -q master)"
-[ -n "$master_id" ] || fail "compose ps finds no master container"
+# In the foreground, as a user runs it: it returns when every container has stopped, with the
+# master's status (checked at the end of the run).
+COMPOSE_TIMEOUT=300 compose up --no-build --scale worker="$workers" > "$work/up.log" 2>&1 &
+up_pid=$!
+master_id=""
+for _ in $(seq 1 120); do
+  master_id="$(compose ps -q master)"
+  [ -z "$master_id" ] || break
+  kill -0 "$up_pid" 2>/dev/null || break
+  sleep 0.5
+done
+[ -n "$master_id" ] || { cat "$work/up.log" >&2; fail "compose up made no master container within 60 s"; }
 bridge="br-$(docker network inspect -f '{{.Id}}' "${project}_default" | cut -c1-12)"
 
 master_log() { docker logs "$master_id" 2>&1; }
@@ -335,6 +345,11 @@ for id in $worker_ids; do
 done
 wait "$host_worker_pid" || { cat "$work/host-worker.log" >&2; fail "the host worker exited with status $?"; }
 host_worker_pid=""
+up_status=0
+wait "$up_pid" || up_status=$?
+[ "$up_status" = 0 ] || { tail -n 20 "$work/up.log" >&2; fail "compose.sh up exited with status $up_status after a run that succeeded"; }
+grep -q "compose: the master (.*) exited with status 0; frames and stats.jsonl are in $work/frames$" "$work/up.log" ||
+  { tail -n 20 "$work/up.log" >&2; fail "compose.sh up did not report the master's status 0"; }
 grep -q "said goodbye" "$work/host-worker.log" || { cat "$work/host-worker.log" >&2; fail "the host worker did not get the master's Goodbye"; }
 grep -q "worker w[0-9]* (host-worker " "$work/master.log" || fail "the master's log does not show host-worker joining"
 compose logs --no-color > "$work/compose.log" 2>&1 || true
@@ -375,4 +390,56 @@ compose_up=0
 measure "compose down: $((SECONDS - t0)) s"
 [ -z "$(docker ps -aq --filter "label=com.docker.compose.project=$project")" ] || fail "containers left after down"
 ! docker network inspect "${project}_default" >/dev/null 2>&1 || fail "network ${project}_default left after down"
-say "ok (up -> done: $((SECONDS - t_up)) s)"
+say "up -> done: $((SECONDS - t_up)) s"
+
+# ---- failed runs: compose.sh up exits with the master's status, or 1, and names what failed ----
+expect_in() {  # expect_in LOG WHAT PATTERN...
+  local log="$1" what="$2" pattern
+  shift 2
+  for pattern in "$@"; do
+    grep -q -- "$pattern" "$log" || { cat "$log" >&2; fail "compose.sh up $what: no line matching /$pattern/ (its output above)"; }
+  done
+}
+# A master that refuses its frames (exit 1): the workers never start.
+t0=$SECONDS
+compose_up=1
+up_status=0
+RTC_FRAMES=5-2 COMPOSE_TIMEOUT=120 compose up --no-build --scale worker=1 > "$work/up-master-fails.log" 2>&1 || up_status=$?
+[ "$up_status" = 1 ] || { cat "$work/up-master-fails.log" >&2; fail "compose.sh up exited with status $up_status when the master failed with 1"; }
+expect_in "$work/up-master-fails.log" "with a failing master" \
+  "compose: the master (.*) exited with status 1; the end of its log:" "rtc-master: error: --frames: 5-2 is an empty range"
+measure "compose.sh up with a failing master: exit $up_status in $((SECONDS - t0)) s"
+# A worker that refuses its options (exit 2, through a second compose file); once it has exited,
+# the host worker renders the frame (the workers start once the master is healthy, so the master
+# must still be running then): the master exits 0, the run 1.
+printf 'services:\n  worker:\n    command: ["rtc-worker", "--connect", "master:7878", "--threads", "0"]\n' > "$work/failing.yml"
+t0=$SECONDS
+compose down --remove-orphans --timeout 10 > "$work/down.log" 2>&1 || { cat "$work/down.log" >&2; fail "compose down failed"; }
+up_status=0
+RTC_FRAMES=0-0 RTC_MIN_WORKERS=1 COMPOSE_TIMEOUT=120 compose -f "$work/failing.yml" up --no-build --scale worker=1 \
+  > "$work/up-worker-fails.log" 2>&1 &
+up_pid=$!
+worker_exited() {
+  local id
+  id="$(compose -f "$work/failing.yml" ps -q worker)"
+  [ -n "$id" ] && [ "$(docker inspect -f '{{.State.Status}}' "$id")" = exited ]
+}
+for _ in $(seq 1 120); do
+  worker_exited && break
+  kill -0 "$up_pid" 2>/dev/null || { cat "$work/up-worker-fails.log" >&2; fail "compose.sh up ended before its worker exited"; }
+  sleep 0.5
+done
+worker_exited || { cat "$work/up-worker-fails.log" >&2; fail "the failing worker did not exit within 60 s"; }
+"$worker" --connect "127.0.0.1:$RTC_PORT" --token-file "$RTC_TOKEN_FILE" --threads 1 --name host-worker \
+  --retry-seconds 60 > "$work/host-worker-2.log" 2>&1 &
+host_worker_pid=$!
+wait "$host_worker_pid" || { cat "$work/host-worker-2.log" >&2; fail "the host worker exited with status $? in the run with a failing worker"; }
+host_worker_pid=""
+wait "$up_pid" || up_status=$?
+[ "$up_status" = 1 ] || { cat "$work/up-worker-fails.log" >&2; fail "compose.sh up exited with status $up_status when a worker failed with 2"; }
+expect_in "$work/up-worker-fails.log" "with a failing worker" "compose: the master (.*) exited with status 0" \
+  "compose: worker .* exited with status 2; the end of its log:" "rtc-worker: error: --threads: Value 0 not in range"
+measure "compose.sh up with a failing worker: exit $up_status in $((SECONDS - t0)) s"
+compose down --volumes --remove-orphans --timeout 10 > "$work/down.log" 2>&1 || { cat "$work/down.log" >&2; fail "compose down failed"; }
+compose_up=0
+say "ok (all: $((SECONDS - t_up)) s)"

@@ -3,13 +3,18 @@
 // many threads as the CPU it requests, every Secret and PVC a pod mounts is in the render, the
 // pods run as the image's non-root user and can read the token Secret, the master's script refuses
 // the placeholder token, and the workers spread over nodes.
-// usage: node k8s_consistency.js FILE   (FILE "-" reads standard input; one kubectl kustomize render)
+// With a second render, made with another token, it checks that a new token rolls out new pods:
+// both Deployments' pod templates change (they name the Secret, whose name carries its hash).
+// usage: node k8s_consistency.js FILE [FILE_OTHER_TOKEN]   (FILE "-" reads standard input; each
+//        one kubectl kustomize render)
 'use strict';
 const fs = require('fs');
 const yaml = require('js-yaml');
 
 const file = process.argv[2] || '-';
-const docs = yaml.loadAll(fs.readFileSync(file === '-' ? 0 : file, 'utf8')).filter(Boolean);
+const load = (f) => yaml.loadAll(fs.readFileSync(f === '-' ? 0 : f, 'utf8')).filter(Boolean);
+const docs = load(file);
+const otherToken = process.argv[3] ? load(process.argv[3]) : null;
 const problems = [];
 let checks = 0;
 function check(ok, what) {
@@ -119,6 +124,21 @@ if (problems.length === 0) {
   check(!/placeholder/.test(random.stderr) && random.status !== 1,
         `the master's script takes any other token (exit ${random.status}: ${random.stderr.trim()})`);
   fs.rmSync(dir, { recursive: true, force: true });
+
+  // A new token rolls out new pods: the pods read the token once, at start.
+  if (otherToken) {
+    const secretsOf = (d) => (d.spec.template.spec.volumes || []).filter((v) => v.secret).map((v) => v.secret.secretName);
+    for (const d of [master, worker]) {
+      const o = otherToken.find((x) => x.kind === 'Deployment' && x.metadata.name === d.metadata.name);
+      check(o && JSON.stringify(o.spec.template) !== JSON.stringify(d.spec.template),
+            `${d.metadata.name}: another token changes the pod template (it names Secrets ` +
+            `${secretsOf(d).join(', ')}, then ${o ? secretsOf(o).join(', ') : 'no Deployment'}), so the pods roll`);
+      for (const name of o ? secretsOf(o) : []) {
+        check(otherToken.some((x) => x.kind === 'Secret' && x.metadata.name === name),
+              `${d.metadata.name}: with another token, Secret ${name} is in the render`);
+      }
+    }
+  }
 
   const hpa = docs.find((d) => d.kind === 'HorizontalPodAutoscaler');
   if (hpa) {

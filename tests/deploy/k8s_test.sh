@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Kubernetes manifests, checked offline (no cluster here): `kubectl kustomize deploy/k8s` renders,
-# also with the optional worker-hpa.yaml enabled; every document passes kubernetes-models' schema
-# check (k8s_validate.js) and the cross-document checks of k8s_consistency.js.
+# also with the optional worker-hpa.yaml enabled and with another token; every document passes
+# kubernetes-models' schema check (k8s_validate.js) and the cross-document checks of
+# k8s_consistency.js, among them that another token rolls out new pods.
 # usage: k8s_test.sh NPM_DIR    (NPM_DIR: where kubernetes-models is installed from the pinned
 #                               k8s_schema/package-lock.json; reused while the lock is unchanged)
 set -euo pipefail
@@ -29,6 +30,11 @@ grep -q '^  - worker-hpa.yaml$' "$work/k8s-hpa/kustomization.yaml" || fail "kust
 timeout 60 kubectl kustomize "$work/k8s-hpa" > "$work/render-hpa.yaml" || fail "kubectl kustomize with worker-hpa.yaml failed"
 grep -q '^kind: HorizontalPodAutoscaler$' "$work/render-hpa.yaml" || fail "the render with worker-hpa.yaml has no HorizontalPodAutoscaler"
 
+# Another token: its render must roll both Deployments' pods (k8s_consistency.js compares).
+cp -r "$root/deploy/k8s" "$work/k8s-token"
+echo "another-token-$$" > "$work/k8s-token/token"
+timeout 60 kubectl kustomize "$work/k8s-token" > "$work/render-token.yaml" || fail "kubectl kustomize with another token failed"
+
 # kubernetes-models from the npm registry, pinned by the lock file; installed again only when it changes.
 mkdir -p "$npm_dir"
 if ! cmp -s "$here/k8s_schema/package-lock.json" "$npm_dir/package-lock.json" || [ ! -d "$npm_dir/node_modules/kubernetes-models" ]; then
@@ -42,5 +48,5 @@ export NODE_PATH="$npm_dir/node_modules"
 echo "--- schema check"
 timeout 60 node "$here/k8s_validate.js" "$work/render-hpa.yaml" || fail "schema check failed"
 echo "--- consistency check"
-timeout 60 node "$here/k8s_consistency.js" "$work/render-hpa.yaml" || fail "consistency check failed"
+timeout 60 node "$here/k8s_consistency.js" "$work/render-hpa.yaml" "$work/render-token.yaml" || fail "consistency check failed"
 echo "k8s_test: ok"

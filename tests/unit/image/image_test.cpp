@@ -785,14 +785,14 @@ using OutputPattern = ImageFileTest;
 TEST_F(OutputPattern, CheckedBeforeRendering) {
   const auto error_of = [](const std::string& pattern, bool multiple) -> std::string {
     try {
-      (void)check_output_pattern(pattern, 3, multiple);
+      (void)check_output_pattern(pattern, 3, 3, multiple);
     } catch (const Error& e) {
       return e.what();
     }
     return "";
   };
   const std::string d = dir_.string();
-  EXPECT_EQ(check_output_pattern(d + "/f_####.exr", 3, true), dir_ / "f_0003.exr");
+  EXPECT_EQ(check_output_pattern(d + "/f_####.exr", 3, 5, true), dir_ / "f_0003.exr");
   EXPECT_EQ(error_of(d + "/f_####.exr", true), "");
   EXPECT_EQ(error_of(d + "/f.PNG", false), "");
   EXPECT_EQ(error_of(d + "/f_####.xyz", true),
@@ -820,6 +820,79 @@ TEST_F(OutputPattern, CheckedBeforeRendering) {
             "output pattern '" + d + "/take#2/f_####.png': has 2 frame placeholders; a name can hold only one (" + hint + ")");
   fs::create_directories(dir_ / "take#2");
   EXPECT_EQ(error_of(d + "/take#2/f_%04d.png", true), "");
+}
+
+TEST_F(OutputPattern, EveryFrameIsChecked) {
+  const auto error_of = [](const std::string& pattern, int first, int last) -> std::string {
+    try {
+      (void)check_output_pattern(pattern, first, last, last > first || pattern.find('#') != std::string::npos);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string d = dir_.string();
+  // A folder per frame: the second one is missing.
+  fs::create_directories(dir_ / "run_00");
+  EXPECT_EQ(error_of(d + "/run_##/f.png", 0, 0), "");
+  const std::string hint =
+      "each run of '#' is the frame number, in folder names too; in a pattern with \"%04d\" for it every '#' is literal";
+  EXPECT_EQ(error_of(d + "/run_##/f.png", 0, 1), "--out: " + d + "/run_01/f.png: folder '" + d +
+                                                     "/run_01' does not exist (the pattern '" + d +
+                                                     "/run_##/f.png' gives this name for frame 1: " + hint + ")");
+  // A later frame's name taken by a folder.
+  fs::create_directories(dir_ / "f_0001.png");
+  EXPECT_EQ(error_of(d + "/f_####.png", 0, 2),
+            "--out: " + d + "/f_0001.png: is a folder (frame 1's name; the run's first is " + d + "/f_0000.png)");
+  EXPECT_EQ(error_of(d + "/f_####.png", 2, 9), "");
+  // Longer than a file name may be (the temporary name it is written through fits).
+  const std::string long_stem(247, 'b');
+  EXPECT_EQ(error_of(d + "/" + long_stem + ".png", 0, 0), "");
+  EXPECT_EQ(error_of(d + "/" + long_stem + "_####.png", 0, 0),
+            "--out: " + d + "/" + long_stem + "_0000.png: the file name is 256 bytes; a name may have at most 255");
+}
+
+TEST_F(OutputPattern, LongNamesAreWritten) {
+  // 251 bytes of name and ".png": the temporary name write_image goes through must fit too.
+  const fs::path path = dir_ / (std::string(251, 'b') + ".png");
+  write_image(path, Image(4, 2));
+  EXPECT_TRUE(fs::is_regular_file(path));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST(OutputSize, JpegHoldsAtMost65500PixelsASide) {
+  EXPECT_EQ(output_size_problem("f.jpg", 65500, 65500), "");
+  EXPECT_EQ(output_size_problem("f.png", 65536, 1), "");
+  EXPECT_EQ(output_size_problem("f.JPEG", 65501, 1),
+            "a JPEG file holds at most 65500 pixels a side, and the frame is 65501x1 (use .png, .exr or .tif, or a "
+            "smaller --width/--height)");
+  EXPECT_NE(output_size_problem("f.jpg", 1, 70000), "");
+  // write_image refuses such a frame with the reason, before libjpeg would end the process.
+  const Image wide(65501, 1);
+  try {
+    write_image(fs::path(testing::TempDir()) / "wide.jpg", wide);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("a JPEG file holds at most 65500 pixels a side"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OutputSize, WriteScratchFollowsTheFormat) {
+  ImageWriteOptions half;
+  const std::uint64_t mib = std::uint64_t{1} << 20;
+  // PNG: the 8-bit copy and the file's buffer; JPEG and PPM: 3 bytes a pixel.
+  EXPECT_EQ(image_write_scratch_bytes("f.png", 100, 10, true, half), 4000 + 4000 + mib);
+  EXPECT_EQ(image_write_scratch_bytes("f.ppm", 100, 10, false, half), 3000 + 3000 + mib);
+  // EXR: half RGBA, float Z, half N; without depth and normals, RGBA only.
+  EXPECT_EQ(image_write_scratch_bytes("f.exr", 100, 10, true, half), 1000 * (8 + 4 + 6) + mib);
+  EXPECT_EQ(image_write_scratch_bytes("f.exr", 100, 10, false, half), 1000 * 8 + mib);
+  ImageWriteOptions full;
+  full.exr_type = ExrPixelType::Float;
+  EXPECT_EQ(image_write_scratch_bytes("f.exr", 100, 10, true, full), 1000 * (16 + 4 + 12) + mib);
+  EXPECT_EQ(image_write_scratch_bytes("f.tif", 100, 10, true, full), 1000 * 16 + mib);
+  // The file's buffer is at most 1 GiB.
+  EXPECT_EQ(image_write_scratch_bytes("f.tif", 32768, 32768, false, full), std::uint64_t{1} << 30);
+  EXPECT_EQ(image_write_scratch_bytes("f.xyz", 100, 10, true, full), 0u);
 }
 
 // ---- Image, blit, hash -----------------------------------------------------------------------
