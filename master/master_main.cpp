@@ -196,6 +196,11 @@ int run(int argc, char** argv) {
   std::optional<rtc::FrameRange> requested;
   if (app.count("--frames") > 0) requested = rtc::parse_frame_range(frames_text);  // "" is an error too
   if (app.count("--out") > 0 && o.out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
+  // What of --out is known before the (possibly long) load: the rest once the frames are known.
+  if (app.count("--out") > 0) {
+    rtc::check_output_pattern_early(o.out_pattern, o.loop_seconds > 0 ? 0 : (requested ? requested->first : 0),
+                                    o.loop_seconds > 0 || (requested && requested->last > requested->first));
+  }
 
   const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
   if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, scene.name);

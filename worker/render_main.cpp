@@ -166,6 +166,11 @@ int run(int argc, char** argv) {
   std::optional<rtc::FrameRange> requested_frames;
   if (app.count("--frames") > 0) requested_frames = rtc::parse_frame_range(frames_text);  // "" is an error too
   if (app.count("--out") > 0 && out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
+  // What of --out is known before the (possibly long) load: the rest once the frames are known.
+  if (!out_pattern.empty()) {
+    rtc::check_output_pattern_early(out_pattern, requested_frames ? requested_frames->first : 0,
+                                    requested_frames && requested_frames->last > requested_frames->first);
+  }
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -309,6 +314,11 @@ int run(int argc, char** argv) {
     std::printf("rendered frames %d-%d (%d frames) in %.1f s; the last: %s\n", frames.first, frames.last,
                 frames.last - frames.first + 1, run_timer.elapsed_ms() / 1000.0,
                 rtc::expand_frame_pattern(out_pattern, frames.last, multiple).c_str());
+  }
+  // The frames are on disk; a report that never reached standard output (a full disk, a closed
+  // descriptor) still fails the run.
+  if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0) {
+    throw rtc::Error("standard output: the frames' report could not be written (the frames themselves were)");
   }
   return 0;
 }

@@ -515,7 +515,9 @@ class WorkerClient {
     } else {
       // Reached, but the handshake failed (a bad message, a non-rtc server): say why every time.
       spdlog::warn("connection to {} failed before the master welcomed this worker: {}{}", options_.connect, reason,
-                   silent && !tls_ ? std::string(" without a word from it; ") + kTlsHint : std::string());
+                   !silent || tls_ ? std::string()
+                   : reason.find("nothing heard") != std::string::npos ? std::string("; ") + kTlsHint
+                                                                       : std::string(" without a word from it; ") + kTlsHint);
     }
     retry(reason, /*connected=*/true);
   }
@@ -730,8 +732,12 @@ class WorkerClient {
       return fail_session(proto::ErrorCode::Protocol, e.what());
     }
     mark_grid_ = std::move(grid);
-    spdlog::info("temporal coherence: recording the voxels each tile's rays cross on a {}x{}x{} grid", m.dims[0],
-                 m.dims[1], m.dims[2]);
+    if (mark_grid_->empty()) {
+      spdlog::info("temporal coherence: no mesh moves, so no voxels are recorded (frames differ only where lights move)");
+    } else {
+      spdlog::info("temporal coherence: recording the voxels each tile's rays cross on a {}x{}x{} grid", m.dims[0],
+                   m.dims[1], m.dims[2]);
+    }
   }
 
   void handle(proto::FrameEnd&& m) { settings_.erase(m.sequence); }

@@ -150,6 +150,16 @@ std::string numbered_frame_pattern(const std::string& folder, std::string_view s
   return out + file_stem_for(scene_name) + "_%04d.png";
 }
 
+void check_output_pattern_early(const std::string& pattern, int frame, bool multiple_frames) {
+  const std::filesystem::path path(expand_frame_pattern(pattern, frame, multiple_frames));
+  const std::size_t slash = pattern.rfind('/');
+  const bool folder_varies = slash != std::string::npos && pattern.find_first_of("#%") < slash;
+  if (image_file_kind(path) && folder_varies) return;  // the folder is known per frame, after the load
+  if (const std::string problem = output_file_problem(path); !problem.empty()) {
+    throw Error("--out: " + path.string() + ": " + problem);
+  }
+}
+
 std::filesystem::path check_output_pattern(const std::string& pattern, int first_frame, int last_frame,
                                            bool multiple_frames) {
   const std::filesystem::path first(expand_frame_pattern(pattern, first_frame, multiple_frames));

@@ -180,6 +180,12 @@ std::string file_stem_for(std::string_view name);
 /// ('#' too: the pattern is printf-style). rtc-master's --out-dir.
 std::string numbered_frame_pattern(const std::string& folder, std::string_view scene_name);
 
+/// What of `--out PATTERN` is known before the scene is loaded (which frames it has, and so the
+/// names, are not): expand_frame_pattern's errors for `frame`, an unknown extension, and a
+/// missing folder where the folder's name holds no frame number throw rtc::Error
+/// ("--out: <name>: <reason>"). check_output_pattern checks the rest once the frames are known.
+void check_output_pattern_early(const std::string& pattern, int frame, bool multiple_frames);
+
 /// `--out PATTERN` checked before anything is rendered, for every frame from `first_frame` to
 /// `last_frame`: expand_frame_pattern's errors, a frame's name that is a folder or longer than
 /// 255 bytes, output_file_problem's, or a folder this process cannot write to throw rtc::Error

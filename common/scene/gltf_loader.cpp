@@ -178,7 +178,8 @@ class GltfReader {
     for (std::size_t i = 0; i < n; ++i) {
       for (const int c : model_.nodes[i].children) {
         if (c < 0 || static_cast<std::size_t>(c) >= n) fail(node_name(i) + " has a missing child " + std::to_string(c));
-        if (parent[c] >= 0 || static_cast<std::size_t>(c) == i) fail(node_name(c) + " has more than one parent");
+        if (static_cast<std::size_t>(c) == i) fail(node_name(c) + " is its own child");
+        if (parent[c] >= 0) fail(node_name(c) + " has more than one parent");
         parent[c] = static_cast<int>(i);
       }
     }

@@ -109,6 +109,16 @@ class NffReader {
     return p;
   }
 
+  /// Three numbers on one line: the first on the next line when `new_line` (else on this one),
+  /// the others on the same line.
+  glm::vec3 read_line_point(std::string_view what, bool new_line) {
+    glm::vec3 p;
+    p[0] = new_line ? cursor_.next_float(what) : cursor_.next_float_on_line(what);
+    p[1] = cursor_.next_float_on_line(what);
+    p[2] = cursor_.next_float_on_line(what);
+    return p;
+  }
+
   /// Fails unless a ball of `radius` around `center` lies within kMaxWorldCoordinate (a
   /// finite centre and radius may still give vertices beyond the float range).
   void check_reach(const glm::vec3& center, float radius, std::string_view what) const {
@@ -156,11 +166,13 @@ class NffReader {
     }
     polygon_.clear();
     const std::uint32_t first = builder_.vertex_count();
+    // A vertex per line (its normal beside it in a patch): a line cut short is named as such,
+    // not as a bad number on a later line.
     for (std::int64_t k = 0; k < count; ++k) {
-      const glm::vec3 p = read_point("polygon vertex");
+      const glm::vec3 p = read_line_point("polygon vertex", /*new_line=*/true);
       polygon_.push_back(p);
       if (with_normals) {
-        builder_.add_vertex(p, read_point("patch normal"));
+        builder_.add_vertex(p, read_line_point("patch normal", /*new_line=*/false));
       } else {
         builder_.add_vertex(p);
       }

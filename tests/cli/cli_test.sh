@@ -270,6 +270,11 @@ case_bad_output_checked_first() {
   mkdir "$work/taken.png"
   expect_error out_is_folder "--out" "$work/taken.png" "is a folder" -- \
     "$render" --frames 0 --width 16 --height 16 --out "$work/taken.png"
+  # Before the scene is loaded (here: before it is found missing).
+  expect_error out_before_load "--out" "o.xyz: unsupported extension '.xyz'" -- \
+    "$render" "$work/no-such-scene.json" --out "$work/o.xyz"
+  expect_error out_folder_before_load "--out" "folder '$work/absent' does not exist" -- \
+    "$render" "$work/no-such-scene.json" --out "$work/absent/o_####.png"
   expect_error out_empty "--out: the pattern is empty" -- \
     "$render" --frames 0 --width 16 --height 16 --out ""
   expect_error frames_empty "--frames" 'got ""' -- \
@@ -329,6 +334,13 @@ case_output_checked_for_every_frame() {
   expect_rc default_out 1
   expect_in default_out err "cannot make out/, the output folder when no --out is given"
   expect_in default_out err "(give --out)"
+  # A report that cannot reach standard output fails the run; the frame is written all the same.
+  "$render" --frames 0 --width 16 --height 16 --out "$work/report.png" >/dev/full 2>"$work/dev_full.err"
+  rc=$?
+  [[ $rc -eq 1 ]] || { cat "$work/dev_full.err" >&2; fail "rtc-render with stdout on /dev/full: exit status $rc, expected 1"; }
+  grep -qF "standard output: the frames' report could not be written" "$work/dev_full.err" ||
+    { cat "$work/dev_full.err" >&2; fail "rtc-render with stdout on /dev/full: no word of the lost report"; }
+  [[ -s $work/report.png ]] || fail "rtc-render with stdout on /dev/full wrote no frame"
 }
 
 case_degenerate_camera() {

@@ -218,6 +218,11 @@ TEST(FrameRange, RefusesBadTextWithTheReason) {
   EXPECT_EQ(error_of([] { (void)parse_frame_range("2147483647"); }),
             "--frames: 2147483647: frame numbers must be at most 1000000000");
   EXPECT_EQ(parse_frame_range("1000000000").last, 1000000000);
+  // White space anywhere is refused (std::stoi took it in front); a negative end is named as such.
+  EXPECT_EQ(error_of([] { (void)parse_frame_range(" 1"); }), "--frames: expected A-B or A, got \" 1\"");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("1- 2"); }), "--frames: expected A-B or A, got \"1- 2\"");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("0--1"); }), "--frames: 0--1: frame numbers must be >= 0");
+  EXPECT_EQ(error_of([] { (void)parse_frame_range("-3"); }), "--frames: -3: frame numbers must be >= 0");
 }
 
 TEST(Logging, UnknownLevelIsAnError) {

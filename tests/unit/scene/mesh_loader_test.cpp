@@ -652,6 +652,11 @@ TEST(GltfLoader, NodesMustFormATree) {
   const std::string message = error_of([&] { (void)load_gltf(dir.write("dag.gltf", gltf)); });
   EXPECT_NE(message.find("dag.gltf: glTF: node 1 is a scene root and another node's child"), std::string::npos)
       << message;
+  // A node that lists itself: said as such (it was "has more than one parent").
+  gltf = test::small_gltf();
+  gltf.replace(gltf.find(nodes), nodes.size(), R"({"mesh": 0, "translation": [10, 0, 0], "children": [0]})");
+  const std::string self = error_of([&] { (void)load_gltf(dir.write("self.gltf", gltf)); });
+  EXPECT_NE(self.find("self.gltf: glTF: node 0 is its own child"), std::string::npos) << self;
 }
 
 TEST(GltfLoader, StripsAndFansFollowTheSpecification) {

@@ -191,6 +191,11 @@ TEST(NffLoader, BadInputNamesTheLine) {
               (void)load_nff(dir.write("t.nff", "p 4\n0 0 0\n1 0 0\n1 1 0\n"));
             }).find("t.nff:4: unexpected end of file"),
             std::string::npos);
+  // A vertex line cut short is named, not the next statement read as its last number.
+  EXPECT_EQ(error_of([&] { (void)load_nff(dir.write("c.nff", "p 3\n0 0 0\n1 0\n0 1 0\np 3\n")); }),
+            (dir.path() / "c.nff").string() + ":3: line ends early, expected polygon vertex");
+  EXPECT_EQ(error_of([&] { (void)load_nff(dir.write("pp.nff", "pp 3\n0 0 0 0 0 1\n1 0 0 0 0\n0 1 0 0 0 1\n")); }),
+            (dir.path() / "pp.nff").string() + ":3: line ends early, expected patch normal");
   EXPECT_NE(error_of([&] {
               (void)load_nff(dir.write("n.nff", "s 0 nan 0 1\n"));
             }).find("n.nff:1: bad sphere centre"),
