@@ -76,11 +76,11 @@ trap 'forward INT' INT
 trap 'forward TERM' TERM
 setsid "${compose[@]}" "$@" &
 compose_pid=$!
-status=0
-wait "$compose_pid" || status=$?
-while kill -0 "$compose_pid" 2>/dev/null; do
+# (A trapped signal ends `wait` early: wait again while compose runs.)
+while :; do
   status=0
   wait "$compose_pid" || status=$?
+  kill -0 "$compose_pid" 2>/dev/null || break
 done
 trap - INT TERM
 
@@ -91,13 +91,14 @@ exit_of() {
     grep -iv '^true ' | cut -d' ' -f2- || true
 }
 log_tail() { docker logs --tail 6 "$1" 2>&1 | sed 's/^/  /' >&2 || true; }
+stopped() { [ "$1" = exited ] || [ "$1" = dead ]; }
 master_status=0 worker_failed=0 master_seen=0
 for id in $("${compose[@]}" "${globals[@]}" ps -a -q master 2>/dev/null || true); do
   read -r state code name <<<"$(exit_of "$id")"
   [ -n "${state:-}" ] || continue
   master_seen=1
   name="${name#/}"
-  if [ "$state" != exited ] && [ "$state" != dead ]; then
+  if ! stopped "$state"; then
     echo "compose: the master ($name) is $state" >&2
   elif [ "$code" != 0 ]; then
     echo "compose: the master ($name) exited with status $code; the end of its log:" >&2
@@ -109,7 +110,7 @@ for id in $("${compose[@]}" "${globals[@]}" ps -a -q master 2>/dev/null || true)
 done
 for id in $("${compose[@]}" "${globals[@]}" ps -a -q worker 2>/dev/null || true); do
   read -r state code name <<<"$(exit_of "$id")"
-  if { [ "${state:-}" = exited ] || [ "${state:-}" = dead ]; } && [ "$code" != 0 ]; then
+  if stopped "${state:-}" && [ "$code" != 0 ]; then
     echo "compose: worker ${name#/} exited with status $code; the end of its log:" >&2
     log_tail "$id"
     worker_failed=1

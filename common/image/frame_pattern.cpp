@@ -169,8 +169,7 @@ std::filesystem::path check_output_pattern(const std::string& pattern, int first
   const bool hashes = slash != std::string::npos && pattern.substr(0, slash).find('#') != std::string::npos &&
                       first.parent_path().string().find('#') == std::string::npos;
   std::error_code ec;
-  std::filesystem::path checked_folder;
-  bool first_checked = false;
+  std::filesystem::path checked_folder;  // never empty once set: "." stands for no folder
   // Every frame's name, so that no run stops halfway: a later frame's folder missing (a pattern
   // in the folder's name), a later frame's name taken by a folder.
   for (int frame = first_frame; frame <= std::max(first_frame, last_frame); ++frame) {
@@ -189,8 +188,7 @@ std::filesystem::path check_output_pattern(const std::string& pattern, int first
       throw bad(fmt::format("the file name is {} bytes; a name may have at most {}", name_bytes, kMaxFileNameBytes));
     }
     const std::filesystem::path folder = path.parent_path().empty() ? "." : path.parent_path();
-    if (first_checked && folder == checked_folder) continue;
-    first_checked = true;
+    if (folder == checked_folder) continue;
     checked_folder = folder;
     // write_image's own checks, then what only writing finds out.
     if (const std::string problem = output_file_problem(path); !problem.empty()) throw bad(problem);

@@ -206,6 +206,12 @@ class TempFile {
   bool committed_ = false;
 };
 
+// write_image's buffer for a file whose pixels take `pixel_bytes` uncompressed: room for them plus
+// headers and offset tables, at most 1 GiB (image_write_scratch_bytes counts the same).
+std::uint64_t file_buffer_bytes(std::uint64_t pixel_bytes) {
+  return std::min<std::uint64_t>(pixel_bytes + (std::uint64_t{1} << 20), std::uint64_t{1} << 30);
+}
+
 fs::path temp_path_for(const fs::path& path) {
   // Same folder (so rename is atomic), hidden, unique per process and call, and keeping the
   // extension so nothing mistakes it for another format.
@@ -392,8 +398,7 @@ std::uint64_t image_write_scratch_bytes(const fs::path& path, int width, int hei
       file_bytes = converted = pixels * 3;
       break;
   }
-  // write_image's buffer for the file: room for the uncompressed pixels, at most 1 GiB.
-  return converted + std::min<std::uint64_t>(file_bytes + (std::uint64_t{1} << 20), std::uint64_t{1} << 30);
+  return converted + file_buffer_bytes(file_bytes);
 }
 
 void write_image(const fs::path& path, const Image& image, const ImageWriteOptions& options) {
@@ -420,7 +425,7 @@ void write_image(const fs::path& path, const Image& image, const ImageWriteOptio
     // what an uncompressed EXR takes, and more than a compressed file does. Untouched room costs
     // no memory; the buffer growing by doubling cost copies and fresh pages (a 2048x2048 float
     // EXR with Z and N, no compression: 134 MB grown through copies of 67, 34, ... MB).
-    bytes.reserve(std::min<std::size_t>(encoded.spec.image_bytes(/*native=*/true) + (std::size_t{1} << 20), std::size_t{1} << 30));
+    bytes.reserve(static_cast<std::size_t>(file_buffer_bytes(encoded.spec.image_bytes(/*native=*/true))));
     OIIO::Filesystem::IOVecOutput proxy(bytes);
     auto out = OIIO::ImageOutput::create(format->oiio_format);
     if (!out) throw fail(OIIO::geterror());
