@@ -221,7 +221,9 @@ int run(int argc, char** argv) {
   // for), and so is every finished frame waiting for the frame writer (with --out: a frame opens
   // only while fewer than FrameWriter::kMaxPending wait, so at most that many less one besides
   // the frames in flight); with temporal coherence one more: the canvas of every tile's latest
-  // pixels.
+  // pixels. The frame writer writes one frame at a time, which takes a buffer for the file and,
+  // for 8-bit files, a copy (image_write_scratch_bytes).
+  const int first_file = o.loop_seconds > 0 ? 0 : frames.first;
   const std::uint64_t frame_bytes = rtc::Image::bytes(scene.width, scene.height, (o.channels & rtc::kChannelDepth) != 0,
                                                      (o.channels & rtc::kChannelNormal) != 0);
   const std::uint64_t frame_count = static_cast<std::uint64_t>(frames.last - frames.first) + 1;
@@ -229,13 +231,17 @@ int run(int argc, char** argv) {
                                 (o.out_pattern.empty() ? 0u : rtc::FrameWriter::kMaxPending - 1);
   const std::uint64_t held =
       (o.loop_seconds > 0 ? at_once : std::min<std::uint64_t>(at_once, frame_count)) + (temporal ? 1u : 0u);
+  const std::uint64_t write_bytes =
+      o.out_pattern.empty()
+          ? 0u
+          : rtc::image_write_scratch_bytes(rtc::expand_frame_pattern(o.out_pattern, first_file, o.multiple_frames),
+                                           scene.width, scene.height, o.channels != 0, o.write_options);
   rtc::check_memory(std::to_string(held) + (held == 1 ? " frame" : " frames") + " of " + std::to_string(scene.width) +
-                        "x" + std::to_string(scene.height) + " held at once",
-                    frame_bytes * held, "use a smaller --width/--height or fewer --frames-in-flight");
+                        "x" + std::to_string(scene.height) + " held at once" + (write_bytes > 0 ? ", and writing one" : ""),
+                    frame_bytes * held + write_bytes, "use a smaller --width/--height or fewer --frames-in-flight");
   // With --loop files are numbered by sequence (0, 1, ...), not by scene frame.
   if (!o.out_pattern.empty()) {
     // Every frame's name (with --loop: the first's; the run has no last).
-    const int first_file = o.loop_seconds > 0 ? 0 : frames.first;
     const std::filesystem::path first_name =
         rtc::check_output_pattern(o.out_pattern, first_file, o.loop_seconds > 0 ? first_file : frames.last, o.multiple_frames);
     if (const std::string problem = rtc::output_size_problem(first_name, scene.width, scene.height); !problem.empty()) {

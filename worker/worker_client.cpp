@@ -479,6 +479,7 @@ class WorkerClient {
     receiving_scene_ = false;
     last_heard_ = Clock::now();
     connected_at_ = last_heard_;
+    watchdog_closed_ = false;
     const std::uint64_t session = session_;
     conn_->start([this, session](proto::Message&& m, std::size_t) {
                    if (session != session_) return;
@@ -494,6 +495,7 @@ class WorkerClient {
   void on_close(std::uint64_t session, const std::string& reason) {
     if (session != session_) return;
     const bool silent = conn_ && nothing_heard();
+    const bool timed_out = watchdog_closed_;  // its reason already says that nothing was heard
     conn_.reset();
     ++session_;
     pool_.set_session(session_);
@@ -516,8 +518,8 @@ class WorkerClient {
       // Reached, but the handshake failed (a bad message, a non-rtc server): say why every time.
       spdlog::warn("connection to {} failed before the master welcomed this worker: {}{}", options_.connect, reason,
                    !silent || tls_ ? std::string()
-                   : reason.find("nothing heard") != std::string::npos ? std::string("; ") + kTlsHint
-                                                                       : std::string(" without a word from it; ") + kTlsHint);
+                   : timed_out ? std::string("; ") + kTlsHint
+                               : std::string(" without a word from it; ") + kTlsHint);
     }
     retry(reason, /*connected=*/true);
   }
@@ -537,6 +539,7 @@ class WorkerClient {
       const auto limit = std::chrono::milliseconds(std::max<std::uint64_t>(10000, 5 * std::uint64_t{heartbeat_ms_}));
       // A big message on its way (a scene chunk on a slow link) counts while its bytes keep coming.
       if (Clock::now() - std::max(last_heard_, conn_->bytes_arrived()) > limit) {
+        watchdog_closed_ = true;
         conn_->close("nothing heard from the master for " + std::to_string(limit.count()) + " ms");
         return;
       }
@@ -811,6 +814,7 @@ class WorkerClient {
   int probes_this_session_ = 0;
   Clock::time_point lost_since_, last_heard_, connected_at_;
   bool silence_noted_ = false;  // the no-challenge warning was given (once a run)
+  bool watchdog_closed_ = false;  // this connection was closed by the watchdog (nothing heard in time)
   std::string current_type_;
   std::shared_ptr<SceneSlot> scene_;
   proto::SceneOffer scene_offer_;

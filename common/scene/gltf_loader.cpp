@@ -446,7 +446,7 @@ class GltfReader {
     m.diffuse = checked_color(glm::vec3(to_float(base[0], "baseColorFactor"), to_float(base[1], "baseColorFactor"),
                                         to_float(base[2], "baseColorFactor")),
                               what + " base colour", file_, 0);
-    m.opacity = to_float(base[3], "baseColorFactor alpha");
+    m.opacity = checked_opacity(to_float(base[3], "baseColorFactor alpha"), what + " baseColorFactor alpha", file_, 0);
     m.emission = checked_color(glm::vec3(to_float(emissive[0], "emissiveFactor"), to_float(emissive[1], "emissiveFactor"),
                                          to_float(emissive[2], "emissiveFactor")),
                                what + " emissive colour", file_, 0);

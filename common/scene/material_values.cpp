@@ -34,4 +34,14 @@ float checked_shininess(float shininess, std::string_view what, std::string_view
   return 0.0f;
 }
 
+float checked_opacity(float opacity, std::string_view what, std::string_view file, std::uint64_t line) {
+  if (!std::isfinite(opacity)) {
+    throw_at(file, line, fmt::format("{} {} is not finite", what, opacity));
+  }
+  if (opacity >= 0.0f && opacity <= 1.0f) return opacity;
+  const float clamped = opacity < 0.0f ? 0.0f : 1.0f;
+  spdlog::warn("{}", at_location(file, line, fmt::format("{} {} is outside [0, 1]: taken as {}", what, opacity, clamped)));
+  return clamped;
+}
+
 }  // namespace rtc

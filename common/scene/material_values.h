@@ -1,6 +1,7 @@
-// Checks for the numbers a mesh file gives a material (MTL Kd/Ks/Ke/Ns, NFF f, glTF factors):
+// Checks for the numbers a mesh file gives a material (MTL Kd/Ks/Ke/Ns/d/Tr, NFF f, glTF factors):
 // a NaN or infinite value would give NaN pixels, a negative shininess or colour too (the Phong
-// term raises a cosine to the shininess and weights reflections by the specular colour).
+// term raises a cosine to the shininess and weights reflections by the specular colour). An
+// opacity outside [0, 1] means nothing (a scene.json refuses it).
 #pragma once
 
 #include <cstdint>
@@ -20,5 +21,10 @@ namespace rtc {
 /// `what` and the value; negative becomes 0 with one warning.
 [[nodiscard]] float checked_shininess(float shininess, std::string_view what,
                                       std::string_view file, std::uint64_t line);
+
+/// `opacity` unless something is wrong with it: non-finite throws rtc::Error naming file:line,
+/// `what` and the value; outside [0, 1] it is clamped into it with one warning.
+[[nodiscard]] float checked_opacity(float opacity, std::string_view what, std::string_view file,
+                                    std::uint64_t line);
 
 }  // namespace rtc

@@ -199,7 +199,7 @@ class NffReader {
       m.specular = checked_color(glm::vec3(v[4]), "fill Ks", cursor_.file(), cursor_.line());
       m.shininess = checked_shininess(v[5], "fill Shine", cursor_.file(), cursor_.line());
       m.reflective = m.specular.x > 0.0f;
-      m.opacity = 1.0f - v[6];
+      m.opacity = 1.0f - checked_opacity(v[6], "fill T", cursor_.file(), cursor_.line());
       file_.materials.push_back(m);
     }
     builder_.set_material(it->second);
@@ -218,6 +218,13 @@ class NffReader {
   }
 
   void read_view() {
+    // SPD files give one view; where another follows, it replaces the first, as it always did,
+    // but not silently.
+    if (view_line_ != 0) {
+      spdlog::warn("{}", at_location(cursor_.file(), cursor_.line(),
+                                     fmt::format("a second view block replaces the one at line {}", view_line_)));
+    }
+    view_line_ = cursor_.line();
     Camera camera;
     glm::ivec2 resolution(512, 512);
     bool seen[6] = {};
@@ -230,6 +237,7 @@ class NffReader {
       }
       if (which < 0) break;
       cursor_.next_token();
+      if (seen[which]) cursor_.fail(std::string("view block gives \"") + kKeys[which] + "\" twice");
       seen[which] = true;
       switch (which) {
         case 0:
@@ -277,6 +285,7 @@ class NffReader {
   std::vector<glm::vec3> polygon_;
   std::map<std::array<float, 8>, std::uint32_t> fill_ids_;
   std::vector<bool> light_has_color_;
+  std::uint64_t view_line_ = 0;  // the last view block's line, 0 before the first
 };
 
 }  // namespace

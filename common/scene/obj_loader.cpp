@@ -95,10 +95,10 @@ void read_mtl(const fs::path& path, std::vector<Material>& materials,
       const float ns = cursor.next_float_on_line("Ns value");
       current->shininess = checked_shininess(ns, "Ns", cursor.file(), cursor.line());
     } else if (key == "d") {
-      current->opacity = cursor.next_float_on_line("d value");
+      current->opacity = checked_opacity(cursor.next_float_on_line("d value"), "d", cursor.file(), cursor.line());
       has_d = true;
     } else if (key == "Tr") {
-      const float transparency = cursor.next_float_on_line("Tr value");
+      const float transparency = checked_opacity(cursor.next_float_on_line("Tr value"), "Tr", cursor.file(), cursor.line());
       if (!has_d) current->opacity = 1.0f - transparency;
     } else if (key == "illum") {
       const std::int64_t illum = cursor.next_int("illum value");

@@ -1841,7 +1841,9 @@ def case_master_cli_errors(c):
 def _master_memory_counts_the_writer_queue(c):
     """With --out, up to FrameWriter::kMaxPending - 1 finished frames wait to be written besides
     the frames in flight: a frame a third of the available memory passes with one frame in
-    flight, but not with the writer's three more (the check used to count one frame)."""
+    flight, but not with the writer's three more (the check used to count one frame). Writing
+    one of them takes a buffer for the file besides (image_write_scratch_bytes: the half-float
+    EXR's channels, 18 bytes a pixel, and 1 MiB, at most 1 GiB), counted in the figure."""
     with open("/proc/meminfo") as f:
         available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
     width = 32768
@@ -1854,12 +1856,16 @@ def _master_memory_counts_the_writer_queue(c):
             "--out", c.path("big_####.exr"), "--listen", "127.0.0.1:0", "--ready-file", ready]
     p = c.spawn("master-memory", [c.args.master, *args])
     rc = p.wait(30, "fail on a frame too big for the writer queue")
-    pattern = rf"4 frames of {width}x{height} held at once needs at least .* GB are available to this process: use a smaller"
+    frames_bytes = 4 * 32 * width * height
+    write_bytes = min(18 * width * height + (1 << 20), 1 << 30)
+    need = f"{(frames_bytes + write_bytes) / 1e9:.1f}"
+    pattern = (rf"4 frames of {width}x{height} held at once, and writing one needs at least {re.escape(need)} GB of memory "
+               r"and .* GB are available to this process: use a smaller")
     if rc != 1 or not re.search(pattern, p.log()):
         fail(f"rtc-master {' '.join(args)}: {describe_rc(rc)}, expected exit status 1 and /{pattern}/ in:\n{p.log()}")
     if os.path.exists(ready):
         fail("rtc-master started listening with frames too big for its memory")
-    print(f"ok: {width}x{height} with --out and one frame in flight -> 4 frames held at once")
+    print(f"ok: {width}x{height} with --out and one frame in flight -> 4 frames held at once and one written: {need} GB")
 
 
 def _processes_with(text):

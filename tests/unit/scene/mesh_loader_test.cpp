@@ -84,6 +84,24 @@ TEST(ObjLoader, NegativeShininessAndColoursAreClampedWithOneWarningEach) {
             std::string::npos);
 }
 
+TEST(ObjLoader, OpacityOutsideZeroToOneIsClampedWithAWarning) {
+  TempDir dir;
+  dir.write("see.mtl", "newmtl cloud\nd 7\nnewmtl glass\nTr -0.5\nnewmtl fine\nd 0.25\nTr 2\n");
+  const auto obj = dir.write("see.obj",
+                             "mtllib see.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                             "usemtl cloud\nf 1 2 3\nusemtl glass\nf 1 2 3\nusemtl fine\nf 1 2 3\n");
+  const test::CapturedLog log;
+  const MeshFile file = load_obj(obj);
+  ASSERT_EQ(file.mesh.material_ids.size(), 3u);
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]).opacity, 1.0f);
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[1]).opacity, 1.0f) << "Tr -0.5 taken as 0";
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[2]).opacity, 0.25f) << "d comes before Tr";
+  EXPECT_EQ(log.count("see.mtl:2: d 7 is outside [0, 1]: taken as 1"), 1u);
+  EXPECT_EQ(log.count("see.mtl:4: Tr -0.5 is outside [0, 1]: taken as 0"), 1u);
+  EXPECT_EQ(log.count("see.mtl:7: Tr 2 is outside [0, 1]: taken as 1"), 1u);
+  EXPECT_EQ(log.count("outside [0, 1]"), 3u);
+}
+
 TEST(ObjLoader, FanTriangulatesPolygonsFromVertexZero) {
   TempDir dir;
   const auto obj = dir.write("poly.obj",
@@ -589,6 +607,18 @@ TEST(GltfLoader, TexturesAreNotReadAndThatIsSaid) {
   const test::CapturedLog quiet;
   (void)load_gltf(dir.write("plain.gltf", test::small_gltf()));
   EXPECT_EQ(quiet.count("texture"), 0u);
+}
+
+TEST(GltfLoader, AlphaOutsideZeroToOneIsClampedWithAWarning) {
+  TempDir dir;
+  std::string gltf = test::small_gltf();
+  const std::string factor = R"("baseColorFactor": [0.2, 0.4, 0.6, 1.0])";
+  ASSERT_NE(gltf.find(factor), std::string::npos);
+  gltf.replace(gltf.find(factor), factor.size(), R"("baseColorFactor": [0.2, 0.4, 0.6, -3])");
+  const test::CapturedLog log;
+  const MeshFile file = load_gltf(dir.write("alpha.gltf", gltf));
+  EXPECT_EQ(file.materials.at(file.mesh.material_ids[0]).opacity, 0.0f);
+  EXPECT_EQ(log.count("alpha.gltf: material \"default\" baseColorFactor alpha -3 is outside [0, 1]: taken as 0"), 1u);
 }
 
 TEST(GltfLoader, RotationsAreUnitQuaternions) {

@@ -181,6 +181,27 @@ TEST(NffLoader, ConcavePolygonIsEarClippedWithItsArea) {
   }
 }
 
+TEST(NffLoader, ASecondViewBlockReplacesTheFirstWithAWarning) {
+  TempDir dir;
+  const test::CapturedLog log;
+  const MeshFile file = load_nff(dir.write("two.nff",
+                                           "v\nfrom 1 2 3\nat 0 0 0\nup 0 0 1\nangle 45\n"
+                                           "s 0 0 0 1\n"
+                                           "v\nfrom 4 5 6\nat 0 0 0\nup 0 1 0\nangle 30\n"));
+  ASSERT_TRUE(file.camera.has_value());
+  EXPECT_EQ(file.camera->eye, glm::vec3(4, 5, 6));
+  EXPECT_EQ(file.camera->vfov_deg, 30.0f);
+  EXPECT_EQ(log.count("two.nff:7: a second view block replaces the one at line 1"), 1u);
+  const test::CapturedLog one;
+  (void)load_nff(dir.write("one.nff", "v\nfrom 1 2 3\nat 0 0 0\nup 0 0 1\nangle 45\ns 0 0 0 1\n"));
+  EXPECT_EQ(one.count("view block"), 0u);
+  // Within a block each key comes once: a second "from" is a mistake, not a replacement.
+  EXPECT_EQ(error_of([&] {
+              (void)load_nff(dir.write("twice.nff", "v\nfrom 1 2 3\nat 0 0 0\nfrom 4 5 6\nup 0 0 1\nangle 45\n"));
+            }),
+            (dir.path() / "twice.nff").string() + ":4: view block gives \"from\" twice");
+}
+
 TEST(NffLoader, BadInputNamesTheLine) {
   TempDir dir;
   EXPECT_NE(error_of([&] {
@@ -252,6 +273,17 @@ TEST(NffLoader, NegativeFillValuesAreClampedAndOverflowIsRejected) {
   EXPECT_NE(message.find("big.nff:2: fill Kd * colour (inf, 1e+30, 1e+30) is not finite"),
             std::string::npos)
       << message;
+}
+
+TEST(NffLoader, TransmittanceOutsideZeroToOneIsClampedWithAWarning) {
+  TempDir dir;
+  const test::CapturedLog log;
+  const MeshFile file = load_nff(dir.write("t.nff", "f 1 1 1 1 0 10 1.5 1\ns 0 0 0 1\nf 1 1 1 1 0 10 0.25 1\ns 3 0 0 1\n"));
+  ASSERT_EQ(file.materials.size(), 3u);
+  EXPECT_EQ(file.materials[1].opacity, 0.0f) << "T 1.5 taken as 1";
+  EXPECT_EQ(file.materials[2].opacity, 0.75f);
+  EXPECT_EQ(log.count("t.nff:1: fill T 1.5 is outside [0, 1]: taken as 1"), 1u);
+  EXPECT_EQ(log.count("outside"), 1u);
 }
 
 TEST(NffLoader, NegativeBackgroundAndLightColoursAreClamped) {
