@@ -3,13 +3,22 @@
 # folder and a random token (made once, mode 600), both owned by the user the containers run as
 # (yours; the image's rtc user 10001 when you are root). Runs `docker compose` (v2) when present,
 # else `docker-compose` (v1), with your arguments. `up` in the foreground then exits with the
-# master's status (compose's own says nothing of it), naming the master or a worker that failed.
+# master's status (compose's own says nothing of it), naming the master or a worker that failed:
+# 0 after a whole run, the master's status when it failed, else compose's own when it failed, else
+# 1 when a worker did; 130 or 143 after a Ctrl-C or SIGTERM.
 # Usage: ./deploy/compose.sh up --build --scale worker=3     # frames: out/compose/default_####.png
 #        ./deploy/compose.sh logs master;  ./deploy/compose.sh down
+#        ./deploy/compose.sh --help                          # this text; compose's own: help
 # Env: RTC_FRAMES_DIR (out/compose), RTC_TOKEN_FILE (out/compose-token), and the settings listed
 # at the top of deploy/docker-compose.yml.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
+
+# Before anything is made: the header above, without its '# '.
+if [ $# -eq 1 ] && { [ "$1" = --help ] || [ "$1" = -h ]; }; then
+  sed -n '2,/^set -euo/{/^set -euo/d;s/^# \{0,1\}//;p}' "$0"
+  exit 0
+fi
 
 if docker compose version >/dev/null 2>&1; then
   compose=(docker compose)

@@ -1,11 +1,15 @@
 // rtc-master: splits frames of a scene into tiles, hands them to rtc-worker processes over TCP,
 // reassembles and writes the frames, and logs the frame rate next to the link-bound frame rate.
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <new>
 #include <optional>
 #include <string>
+
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -138,6 +142,16 @@ int run(int argc, char** argv) {
   (void)rtc::net::parse_host_port(o.listen, "--listen");
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
   if (app.count("--out-dir") > 0 && out_dir.empty()) throw rtc::Error("--out-dir: the folder is empty");
+  if (!out_dir.empty()) {  // named as such, and before the (possibly long) load
+    std::error_code ec;
+    if (!std::filesystem::is_directory(out_dir, ec)) {
+      throw rtc::Error("--out-dir: " + out_dir +
+                       (std::filesystem::exists(out_dir, ec) ? " is not a folder" : " does not exist (make it first)"));
+    }
+    if (::access(out_dir.c_str(), W_OK) != 0) {
+      throw rtc::Error("--out-dir: cannot write to " + out_dir + ": " + std::strerror(errno));
+    }
+  }
   // The scene's name is known after the load; the file kind (PNG) and the folder are not.
   if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, "scene");
   // EXR and TIFF store float pixels (write_image); PNG, JPEG and PPM store 8-bit sRGB.
@@ -176,7 +190,8 @@ int run(int argc, char** argv) {
   if (app.count("--exr-compression") > 0 && !exr) {
     spdlog::warn("--exr-compression applies to EXR output only; {}",
                  o.out_pattern.empty() ? std::string("no frames are written (no --out)") : o.out_pattern + " is not an EXR file");
-  } else if (exr && rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half)) {
+  } else if (exr && rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half,
+                                               !no_depth)) {
     spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
   }
   // A tile's pixels travel in one message: the largest tile must fit its payload limit.

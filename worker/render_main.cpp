@@ -145,7 +145,7 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
   app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-render")) return *status;
 
   rtc::init_logging(log_level);
@@ -216,7 +216,8 @@ int run(int argc, char** argv) {
                                         std::pair{app.count("--exr-compression") > 0, "--exr-compression"}}) {
       if (given) spdlog::warn("{} applies to EXR output only; {} is not an EXR file", option, first_out.string());
     }
-  } else if (rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half)) {
+  } else if (rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half,
+                                               !no_depth)) {
     spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
   }
 

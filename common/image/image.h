@@ -70,8 +70,9 @@ enum class ExrCompression { None, Rle, Zips, Zip, Piz, Pxr24, B44, B44a, Dwaa, D
 [[nodiscard]] std::string_view exr_compression_name(ExrCompression c);
 /// The compression of a name exr_compression_name gives, or nullopt.
 [[nodiscard]] std::optional<ExrCompression> parse_exr_compression(std::string_view name);
-/// Whether the compression may change pixel values of a file with RGBA and N stored as `type`.
-[[nodiscard]] bool exr_compression_lossy(ExrCompression c, ExrPixelType type);
+/// Whether the compression may change pixel values of a file with RGBA and N stored as `type`,
+/// and Z (always float) when `with_depth`.
+[[nodiscard]] bool exr_compression_lossy(ExrCompression c, ExrPixelType type, bool with_depth);
 /// "none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab", for error messages.
 [[nodiscard]] std::string exr_compression_names();
 

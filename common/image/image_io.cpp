@@ -316,10 +316,11 @@ std::optional<ExrCompression> parse_exr_compression(std::string_view name) {
   return std::nullopt;
 }
 
-bool exr_compression_lossy(ExrCompression c, ExrPixelType type) {
+bool exr_compression_lossy(ExrCompression c, ExrPixelType type, bool with_depth) {
   switch (c) {
     case ExrCompression::Pxr24:  // rounds float channels, and Z is always float
-    case ExrCompression::Dwaa:   // R, G and B in either type
+      return type == ExrPixelType::Float || with_depth;
+    case ExrCompression::Dwaa:  // R, G and B in either type
     case ExrCompression::Dwab:
       return true;
     case ExrCompression::B44:  // half channels only

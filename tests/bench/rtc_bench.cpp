@@ -3,8 +3,10 @@
 // run (--compare-embree), with per-pixel agreement. Speed is reported, never asserted.
 #include <algorithm>
 #include <bit>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -332,7 +334,7 @@ void write_dump(const std::string& prefix, const rtc::FrameState& fs, const std:
   auto write = [](const std::string& path, const void* data, std::size_t bytes) {
     std::ofstream f(path, std::ios::binary);
     f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
-    if (!f) throw rtc::Error(path + ": cannot write the dump");
+    if (!f) throw rtc::Error(path + ": cannot write the dump: " + std::strerror(errno));
   };
   write(prefix + ".t.f32", t.data(), t.size() * sizeof(float));
   write(prefix + ".prim.u32", prim.data(), prim.size() * sizeof(std::uint32_t));
@@ -521,6 +523,12 @@ int run(int argc, char** argv) {
   }
   if (!kd_build_isa.empty()) kd_options.simd_limit = rtc::parse_isa(kd_build_isa);
   if (!tile_share.whole() && !dump_prefix.empty()) throw rtc::Error("--dump writes whole images: leave out --tiles");
+  if (!dump_prefix.empty()) {  // the dump's folder is made (or found wanting) before the scene loads
+    const std::filesystem::path folder = std::filesystem::path(dump_prefix).parent_path();
+    std::error_code ec;
+    if (!folder.empty()) std::filesystem::create_directories(folder, ec);
+    if (ec) throw rtc::Error("--dump: cannot make the folder " + folder.string() + ": " + ec.message());
+  }
   if (ab_reps == 0) ab_reps = reps;
   // --ab-kd-*: a second tree, built once (untimed), whose rays are timed beside the first's.
   const bool ab_tree =

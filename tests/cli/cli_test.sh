@@ -475,8 +475,14 @@ case_temporal() {
 case_bench_json_dump() {
   [[ -n $bench ]] || fail "no rtc-bench given"
   write_small_scene
-  run bench "$bench" "$work/view.json" --json --mode primary --reps 2 --build-reps 1 --dump "$work/tiny"
+  # The dump's folder is made when missing (README's `--dump out/teapot`); one that cannot be made
+  # is named before the scene loads.
+  run bench "$bench" "$work/view.json" --json --mode primary --reps 2 --build-reps 1 --dump "$work/dumps/tiny"
   expect_rc bench 0
+  mv "$work/dumps/tiny.t.f32" "$work/dumps/tiny.prim.u32" "$work/" || fail "no dump in the folder --dump named"
+  : >"$work/in-the-way"
+  expect_error bench_dump_folder "--dump: cannot make the folder $work/in-the-way" -- \
+    "$bench" "$work/view.json" --mode primary --reps 1 --dump "$work/in-the-way/tiny"
   [[ -s $work/bench.out ]] || { show bench >&2; fail "no JSON printed"; }
   python3 - "$work" <<'EOF' || { show bench >&2; fail "rtc-bench JSON or dump check failed"; }
 import json, math, os, struct, sys

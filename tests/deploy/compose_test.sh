@@ -161,6 +161,14 @@ trap cleanup EXIT
 trap 'exit 130' INT
 trap 'exit 143' TERM
 
+# --help prints the script's usage and makes nothing (no token, no frames folder), with or
+# without an engine.
+help_text="$(RTC_FRAMES_DIR="$work/help-frames" RTC_TOKEN_FILE="$work/help-token" "$root/deploy/compose.sh" --help)" ||
+  fail "compose.sh --help exited with status $?"
+case "$help_text" in *"Usage: ./deploy/compose.sh up"*) ;; *) fail "compose.sh --help printed no usage: $help_text" ;; esac
+if [ -e "$work/help-frames" ] || [ -e "$work/help-token" ]; then fail "compose.sh --help made the frames folder or the token"; fi
+say "compose.sh --help: its usage, nothing made"
+
 iptables_rules() { { iptables -S; iptables -t nat -S; } 2>/dev/null; }
 
 # ---- tools ----------------------------------------------------------------------------------------

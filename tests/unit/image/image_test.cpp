@@ -216,10 +216,14 @@ TEST(ExrCompressionNames, ParseWhatTheyName) {
   EXPECT_EQ(names.size(), all.size());
   EXPECT_EQ(exr_compression_names(), "none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab");
   for (const char* bad : {"", "ZIP", "zip ", "gzip", "dwa"}) EXPECT_EQ(parse_exr_compression(bad), std::nullopt) << bad;
-  EXPECT_FALSE(exr_compression_lossy(ExrCompression::Piz, ExrPixelType::Half));
-  EXPECT_TRUE(exr_compression_lossy(ExrCompression::Dwaa, ExrPixelType::Float));
-  EXPECT_FALSE(exr_compression_lossy(ExrCompression::B44, ExrPixelType::Float));
-  EXPECT_TRUE(exr_compression_lossy(ExrCompression::B44, ExrPixelType::Half));
+  EXPECT_FALSE(exr_compression_lossy(ExrCompression::Piz, ExrPixelType::Half, true));
+  EXPECT_TRUE(exr_compression_lossy(ExrCompression::Dwaa, ExrPixelType::Float, false));
+  EXPECT_FALSE(exr_compression_lossy(ExrCompression::B44, ExrPixelType::Float, true));
+  EXPECT_TRUE(exr_compression_lossy(ExrCompression::B44, ExrPixelType::Half, false));
+  // PXR24 rounds float channels only: Z is float, so without it a half file keeps its values.
+  EXPECT_TRUE(exr_compression_lossy(ExrCompression::Pxr24, ExrPixelType::Half, true));
+  EXPECT_FALSE(exr_compression_lossy(ExrCompression::Pxr24, ExrPixelType::Half, false));
+  EXPECT_TRUE(exr_compression_lossy(ExrCompression::Pxr24, ExrPixelType::Float, false));
   EXPECT_EQ(ImageWriteOptions{}.exr_compression, ExrCompression::Zip);
 }
 
@@ -299,7 +303,18 @@ TEST_F(ExrFile, EveryCompressionKeepsWhatItPromises) {
         EXPECT_EQ(image_hash(back), image_hash(image));
       }
       // What the mains warn about: a lossy choice changes these frames, another changes nothing.
-      EXPECT_EQ(exr_compression_lossy(compression, type), image_hash(back) != image_hash(ref));
+      EXPECT_EQ(exr_compression_lossy(compression, type, true), image_hash(back) != image_hash(ref));
+      // And without Z (the frame's depth), which PXR24 would round.
+      ImageWriteOptions no_depth = options;
+      no_depth.write_depth = false;
+      no_depth.exr_compression = ExrCompression::Zip;
+      const fs::path ref_path = dir_ / fmt::format("ref_nz_{}.exr", is_float ? "float" : "half");
+      write_image(ref_path, image, no_depth);
+      no_depth.exr_compression = compression;
+      const fs::path nz_path = dir_ / fmt::format("{}_nz_{}.exr", name, is_float ? "float" : "half");
+      write_image(nz_path, image, no_depth);
+      EXPECT_EQ(exr_compression_lossy(compression, type, false),
+                image_hash(read_image(nz_path)) != image_hash(read_image(ref_path)));
       // RGB and A apart: DWA treats them differently.
       std::vector<float> rgb, rgb_ref, alpha, alpha_ref;
       for (std::size_t i = 0; i < back.rgba.size(); ++i) {
