@@ -16,11 +16,14 @@
 #include <utility>
 
 #include <asio.hpp>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "common/base/error.h"
+#include "common/base/log.h"
 #include "common/base/signal_name.h"
 #include "common/base/version.h"
+#include "common/image/pixel_format.h"
 #include "common/scene/serialize.h"
 #include "master/frame_stats.h"
 #include "master/frame_writer.h"
@@ -420,6 +423,10 @@ class Master {
   void handle(Worker& w, proto::Hello&& m, std::size_t) {
     if (w.state != Worker::State::AwaitHello) return unexpected(w, "Hello");
     w.hello = std::move(m);
+    // What the peer says of itself is logged: no control character of it reaches the log.
+    w.hello.name = printable(w.hello.name);
+    w.hello.isa = printable(w.hello.isa);
+    w.hello.build_id = printable(w.hello.build_id);
     // A worker's claim sizes its share of the queue: keep a hostile one from hoarding every tile.
     w.threads = std::clamp<std::uint32_t>(w.hello.threads, 1, 256);
     w.state = Worker::State::AwaitAuth;
@@ -575,19 +582,43 @@ class Master {
     w.pending_marks[key] = {std::move(m), wire};
   }
 
+  /// How a result differs from its tile's assignment (rectangle, scene frame, pixel format),
+  /// each field with the value sent and the one assigned; empty when it matches. `frame` is the
+  /// open frame of its sequence, null once that frame is finished.
+  std::string result_mismatch(const proto::TileResult& r, const OpenFrame* frame) const {
+    const TileRect& rect = queue_.rect(r.tile);
+    std::string out;
+    const auto differs = [&out](const std::string& what, const auto& sent, const auto& assigned) {
+      out += fmt::format("{}{} {} (assigned {})", out.empty() ? "" : ", ", what, sent, assigned);
+    };
+    if (r.x != rect.x || r.y != rect.y || r.width != rect.width || r.height != rect.height) {
+      differs("rectangle", fmt::format("{}x{} at ({}, {})", r.width, r.height, r.x, r.y),
+              fmt::format("{}x{} at ({}, {})", rect.width, rect.height, rect.x, rect.y));
+    }
+    if (frame != nullptr && r.frame != frame->frame) differs("scene frame", r.frame, frame->frame);
+    if (r.wire_format != static_cast<std::uint8_t>(options_.wire)) {
+      differs("wire format", static_cast<int>(r.wire_format), wire_format_name(options_.wire));
+    }
+    if (r.compression != static_cast<std::uint8_t>(options_.compression)) {
+      differs("compression", static_cast<int>(r.compression), compression_name(options_.compression));
+    }
+    if (r.channels != options_.channels) differs("channels", static_cast<int>(r.channels), static_cast<int>(options_.channels));
+    return out;
+  }
+
   void handle(Worker& w, proto::TileResult&& r, std::size_t wire) {
     if (w.state != Worker::State::Ready) return unexpected(w, "TileResult");
     if (!queue_.holds(w.id, static_cast<int>(r.sequence), r.tile)) {
       return reject(w, proto::ErrorCode::Protocol,
                     "sent a result for tile " + std::to_string(r.tile) + " of frame sequence " +
-                        std::to_string(r.sequence) + " that it was not given");
+                        std::to_string(r.sequence) + " that it does not hold (never given, or already returned)");
     }
-    const TileRect& rect = queue_.rect(r.tile);
-    if (r.x != rect.x || r.y != rect.y || r.width != rect.width || r.height != rect.height ||
-        r.wire_format != static_cast<std::uint8_t>(options_.wire) ||
-        r.compression != static_cast<std::uint8_t>(options_.compression) || r.channels != options_.channels) {
+    const auto fit = frames_.find(r.sequence);
+    if (const std::string mismatch = result_mismatch(r, fit == frames_.end() ? nullptr : &fit->second);
+        !mismatch.empty()) {
       return reject(w, proto::ErrorCode::Protocol,
-                    "tile " + std::to_string(r.tile) + " result does not match its assignment (rectangle or pixel format)");
+                    "tile " + std::to_string(r.tile) + " of frame sequence " + std::to_string(r.sequence) +
+                        ": the result does not match its assignment: " + mismatch);
     }
     const auto key = std::make_pair(r.sequence, r.tile);
     const auto sent = w.assigned_at.find(key);
@@ -596,14 +627,12 @@ class Master {
       tile_latency_ms_ = tile_latency_ms_ <= 0 ? ms : 0.9 * tile_latency_ms_ + 0.1 * ms;
       w.assigned_at.erase(sent);
     }
-    const auto fit = frames_.find(r.sequence);
-    const bool already_done = fit == frames_.end() || queue_.tile_done(static_cast<int>(r.sequence), r.tile);
-    if (!already_done) {
-      const std::string error =
-          decode_tile_pixels(r.pixels, r.raw_size, static_cast<int>(r.width), static_cast<int>(r.height), options_.wire,
-                             options_.compression, r.channels, tile_);
-      if (!error.empty()) return reject(w, proto::ErrorCode::Protocol, "bad pixels in tile " + std::to_string(r.tile) + ": " + error);
-    }
+    // A tile another worker finished meanwhile is checked all the same (into scratch that no
+    // frame reads): a worker that sends bad pixels is dropped whether or not it was first.
+    const std::string error = decode_tile_pixels(r.pixels, r.raw_size, static_cast<int>(r.width),
+                                                 static_cast<int>(r.height), options_.wire, options_.compression,
+                                                 r.channels, tile_);
+    if (!error.empty()) return reject(w, proto::ErrorCode::Protocol, "bad pixels in tile " + std::to_string(r.tile) + ": " + error);
     const TileOutcome outcome = queue_.complete(w.id, static_cast<int>(r.sequence), r.tile);
     std::optional<std::pair<proto::TileMarks, std::size_t>> marks;
     if (const auto mit = w.pending_marks.find(key); mit != w.pending_marks.end()) {
@@ -656,6 +685,7 @@ class Master {
   void handle(Worker&, proto::HeartbeatAck&&, std::size_t) {}
 
   void handle(Worker& w, proto::ErrorMessage&& m, std::size_t) {
+    m.text = printable(m.text);
     spdlog::error("{} reports an error (code {}): {}", w.describe(), static_cast<int>(m.code), m.text);
     const Worker::State state = w.state;  // closing sets it to Closed
     w.conn->close("it reported an error: " + m.text);
@@ -687,7 +717,7 @@ class Master {
   static std::string worker_identity(const Worker& w) { return w.host + "/" + w.hello.name; }
 
   void handle(Worker& w, proto::Goodbye&& m, std::size_t) {
-    w.conn->close("it said goodbye: " + m.reason);
+    w.conn->close("it said goodbye: " + printable(m.reason));
   }
 
   template <class M>
@@ -728,8 +758,9 @@ class Master {
       if (done_) {
         spdlog::debug("worker {} closed: {}", w.describe(), reason);
       } else {
-        // Leaving with tiles unfinished (killed, lost) is worth a warning; an idle one's goodbye is not.
-        spdlog::log(requeued > 0 ? spdlog::level::warn : spdlog::level::info, "worker {} left: {}; {} tiles back in the queue",
+        // Leaving with tiles unfinished (killed, lost) is worth a warning, and so is a bad message;
+        // an idle one's goodbye is not.
+        spdlog::log(requeued > 0 || w.conn->rejected_peer() ? spdlog::level::warn : spdlog::level::info, "worker {} left: {}; {} tiles back in the queue",
                     w.describe(), reason, requeued);
       }
     } else if (!done_) {

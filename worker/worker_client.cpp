@@ -24,6 +24,7 @@
 #include <tbb/global_control.h>
 
 #include "common/base/error.h"
+#include "common/base/log.h"
 #include "common/base/signal_name.h"
 #include "common/base/timer.h"
 #include "common/base/version.h"
@@ -762,6 +763,7 @@ class WorkerClient {
   }
 
   void handle(proto::ErrorMessage&& m) {
+    m.text = printable(m.text);  // the peer's words, before it has proved to be the master
     if (m.code == proto::ErrorCode::AuthFailed) {
       spdlog::error("{} rejected this worker: {} (check --token-file)", conn_->peer(), m.text);
       auth_rejected_ = true;
@@ -772,7 +774,7 @@ class WorkerClient {
   }
 
   void handle(proto::Goodbye&& m) {
-    spdlog::info("{} said goodbye: {}{}", conn_->peer(), m.reason, options_.stay ? "; waiting for the next master" : "; exiting");
+    spdlog::info("{} said goodbye: {}{}", conn_->peer(), printable(m.reason), options_.stay ? "; waiting for the next master" : "; exiting");
     goodbye_ = true;
     lost_since_ = Clock::now();
     conn_->close("goodbye");

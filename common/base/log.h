@@ -1,6 +1,9 @@
 // Logging: spdlog, one process-wide logger writing to stderr.
 #pragma once
 
+#include <string>
+#include <string_view>
+
 #include <spdlog/spdlog.h>
 
 namespace rtc {
@@ -9,5 +12,10 @@ namespace rtc {
 /// trace, debug, info, warn, error, critical, off (and spdlog's "warning", "err"); any other
 /// word throws rtc::Error. Call once from main.
 void init_logging(const std::string& level = "info");
+
+/// `text` from a peer (a worker's name, an error's text) as one log line's worth: control
+/// characters as \n, \r, \t or \xNN, so that it cannot start a forged line or move the
+/// terminal's cursor. Other bytes (UTF-8 too) are kept.
+[[nodiscard]] std::string printable(std::string_view text);
 
 }  // namespace rtc

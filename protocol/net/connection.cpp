@@ -378,6 +378,14 @@ void Connection::reject(const std::string& reason, protocol::ErrorCode code, con
   error.text = text.substr(0, protocol::kMaxText);
   send(error);
   close_after_flush(reason);
+  if (closed_) return;  // the send failed, and finish() has told the owner
+  // The owner hears now, not once the peer has read the Error or the flush has timed out (up
+  // to 2 s later, when a master could have finished and logged the close at debug level).
+  rejected_peer_ = true;
+  auto self = shared_from_this();
+  CloseHandler handler = std::move(on_close_);
+  on_message_ = nullptr;
+  if (handler) handler(reason);
 }
 
 void Connection::close_after_flush(const std::string& reason, std::chrono::milliseconds timeout) {

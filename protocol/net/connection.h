@@ -104,6 +104,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   [[nodiscard]] const std::string& peer() const { return peer_; }
   [[nodiscard]] bool tls() const { return tls_ != nullptr; }
   [[nodiscard]] bool is_open() const { return !closed_; }
+  /// Whether the peer sent a message this end refused (a bad header, CRC or payload, one over
+  /// the size limit): the close handler was then called at once, with the reason.
+  [[nodiscard]] bool rejected_peer() const { return rejected_peer_; }
   [[nodiscard]] std::size_t queued_bytes() const { return queued_bytes_; }
   [[nodiscard]] std::uint64_t bytes_received() const { return bytes_received_; }
   [[nodiscard]] std::uint64_t bytes_sent() const { return bytes_sent_; }
@@ -138,7 +141,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   static constexpr int kSmallPayloadsToGiveBack = 64;
 
  private:
-  /// Sends Error{code, text} to the peer, then closes with `reason`.
+  /// Sends Error{code, text} to the peer and closes once that is sent; the close handler hears
+  /// `reason` at once (the peer is done with, whether or not it reads the Error).
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
   /// Reads what the peer has sent, up to the read buffer's free space, then handles it.
   void read_more();
@@ -210,6 +214,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool reading_ = false;  ///< an async read is outstanding
   bool closed_ = false;
   bool closing_after_flush_ = false;
+  bool rejected_peer_ = false;
   std::string pending_close_reason_;
   std::unique_ptr<asio::steady_timer> flush_timer_;
   std::chrono::steady_clock::time_point header_arrived_{};

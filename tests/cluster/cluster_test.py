@@ -1634,6 +1634,22 @@ def case_faults(c):
                    "(a) the garbage worker closed, its tiles requeued", watch=[master])
     print(f"(a) held {len(held)} tiles; {m.string.strip()}")
 
+    # (a2) a TileResult whose CRC is wrong, from a peer that keeps its socket open and reads
+    # nothing: the master names it at once, as a warning, not when the Error it sends back has
+    # waited out the flush timeout (2 s, "peer did not read the last bytes or close in time",
+    # at info level: a run that ended meanwhile logged nothing).
+    a2 = FakeWorker(addr, "bad-crc")
+    a2.join()
+    seq, frame, tile = a2.tiles()[0]
+    payload = struct.pack("<IiIIIIIBBBIIQQQI", seq, frame, tile, 0, 0, 16, 16, 1, 1, 0, 1024, 1, 0, 0, 0, 0)
+    a2.sock.sendall(HEADER.pack(MAGIC, VERSION, MSG_TILE_RESULT, len(payload), zlib.crc32(payload) ^ 1) + payload)
+    m = expect_log(master, rf"\[warning\] worker \S+ \(bad-crc at {re.escape(a2.me)}\b.*left: bad message .*CRC.*tiles back",
+                   "(a2) the bad CRC named as a warning", watch=[master])
+    a2.close()
+    if "did not read the last bytes" in m.group(0):
+        fail(f"(a2) the bad message was named only after the flush timeout: {m.group(0)}")
+    print(f"(a2) {m.group(0).strip()}")
+
     # (b) a result for a tile it was not given.
     b = FakeWorker(addr, "foreign")
     b.join()
@@ -1649,9 +1665,32 @@ def case_faults(c):
     if not closed:
         fail("(b) the master kept the connection of a worker sending a foreign tile")
     errors = [p for t, p in b.pending + parse_messages(b.buf + data) if t == MSG_ERROR]
-    m = expect_log(master, rf"(?=.*{re.escape(b.me)}\b)(?=.*result for tile {foreign} of frame sequence {seq} that it was not given)",
+    m = expect_log(master, rf"(?=.*{re.escape(b.me)}\b)(?=.*result for tile {foreign} of frame sequence {seq} that it does not "
+                           r"hold \(never given, or already returned\))",
                    "(b) the foreign result refused", watch=[master])
     print(f"(b) {m.string.strip()} (Error sent: {bool(errors)})")
+
+    # (b2) a result for a tile it holds, as another scene frame (a worker rendering the wrong
+    # frame of the animation): refused, each field that differs named, and nothing of it
+    # reaches a frame (every frame is compared below). Its name would forge a log line and
+    # colour the terminal: the master logs it escaped.
+    b2 = FakeWorker(addr, "wrong-frame\n[00:00:00.000] [error] FORGED\x1b[31m")
+    b2.join()
+    seq, frame, tile = b2.tiles()[0]
+    result = struct.pack("<IiIIIIIBBBIIQQQI", seq, frame + 5, tile, 0, 0, 16, 16, 1, 1, 0, 1024, 1, 0, 0, 0, 0)
+    b2.sock.sendall(message(MSG_TILE_RESULT, result))
+    data, closed = read_until_closed(b2.sock, 10)
+    b2.close()
+    if not closed:
+        fail("(b2) the master kept the connection of a worker returning a tile as another frame")
+    m = expect_log(master, rf"(?=.*{re.escape(b2.me)}\b)(?=.*tile {tile} of frame sequence {seq}: the result does not match "
+                           rf"its assignment: .*scene frame {frame + 5} \(assigned {frame}\))",
+                   "(b2) the result for another scene frame refused", watch=[master])
+    print(f"(b2) {m.string.strip()}")
+    if re.search(r"^\[00:00:00\.000\] \[error\] FORGED", master.log(), re.M) or "\x1b[31m" in master.log():
+        fail("(b2) a worker's name forged a line of the master's log or reached it with a control character")
+    if "wrong-frame\\n[00:00:00.000] [error] FORGED\\x1b[31m" not in master.log():
+        fail("(b2) the master's log lacks the worker's name, escaped")
 
     # (c) stops reading while the 1.2 MB scene streams to it, and answers no heartbeat.
     rss_before = proc_status(master.pid)[0]

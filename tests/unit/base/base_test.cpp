@@ -233,6 +233,15 @@ TEST(Logging, UnknownLevelIsAnError) {
             "--log-level: expected trace, debug, info, warn, error, critical or off, got \"loud\"");
 }
 
+TEST(Logging, PrintableEscapesWhatCouldForgeALine) {
+  EXPECT_EQ(rtc::printable("worker-1"), "worker-1");
+  EXPECT_EQ(rtc::printable("a\nb\r\tc"), "a\\nb\\r\\tc");
+  EXPECT_EQ(rtc::printable(std::string("\x1b[31mred\0", 9)), "\\x1b[31mred\\x00");
+  EXPECT_EQ(rtc::printable("\x7f"), "\\x7f");
+  EXPECT_EQ(rtc::printable("caf\xc3\xa9 C:\\x"), "caf\xc3\xa9 C:\\x") << "UTF-8 and backslashes are kept";
+  EXPECT_EQ(rtc::printable(""), "");
+}
+
 TEST(ProgressBar, CountsWithoutDrawingWhenNotForced) {
   TempFile out;
   ASSERT_NE(out.get(), nullptr);
