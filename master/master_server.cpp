@@ -27,6 +27,7 @@
 #include "common/scene/serialize.h"
 #include "master/frame_stats.h"
 #include "master/frame_writer.h"
+#include "master/host_log_budget.h"
 #include "master/image_pool.h"
 #include "master/tile_queue.h"
 #include "protocol/auth.h"
@@ -335,10 +336,12 @@ class Master {
     }
     // Refused before anything is sent or allocated for it: closing the socket is the answer.
     if (open >= options_.max_connections_per_host || unauthenticated >= options_.max_unauthenticated_per_host) {
-      spdlog::warn("refused connection from {}: {} already has {} open connection(s), {} not authenticated "
-                   "(limits {} and {}: --max-connections-per-host, --max-unauthenticated-per-host)",
-                   peer, host, open, unauthenticated, options_.max_connections_per_host,
-                   options_.max_unauthenticated_per_host);
+      if (std::string note; connection_log_.allow(host, Clock::now(), note)) {
+        spdlog::warn("refused connection from {}: {} already has {} open connection(s), {} not authenticated "
+                     "(limits {} and {}: --max-connections-per-host, --max-unauthenticated-per-host){}",
+                     peer, host, open, unauthenticated, options_.max_connections_per_host,
+                     options_.max_unauthenticated_per_host, note);
+      }
       socket.close(endpoint_ec);
       return;
     }
@@ -355,10 +358,13 @@ class Master {
       if (--tls_handshakes_[host] == 0) tls_handshakes_.erase(host);
       if (done_) return;
       if (ec) {
-        spdlog::warn("TLS handshake with {} failed: {}", peer,
-                     ec == asio::error::operation_aborted
-                         ? "no handshake within " + std::to_string(options_.auth_timeout_ms) + " ms (a worker without --tls-ca?)"
-                         : ec.message());
+        if (std::string note; connection_log_.allow(host, Clock::now(), note)) {
+          spdlog::warn("TLS handshake with {} failed: {}{}", peer,
+                       ec == asio::error::operation_aborted
+                           ? "no handshake within " + std::to_string(options_.auth_timeout_ms) + " ms (a worker without --tls-ca?)"
+                           : ec.message(),
+                       note);
+        }
         return;
       }
       add_connection(std::make_shared<net::Connection>(stream, peer), peer, host);
@@ -763,8 +769,8 @@ class Master {
         spdlog::log(requeued > 0 || w.conn->rejected_peer() ? spdlog::level::warn : spdlog::level::info, "worker {} left: {}; {} tiles back in the queue",
                     w.describe(), reason, requeued);
       }
-    } else if (!done_) {
-      spdlog::warn("connection from {} closed before it authenticated: {}", w.conn->peer(), reason);
+    } else if (std::string note; !done_ && connection_log_.allow(w.host, Clock::now(), note)) {
+      spdlog::warn("connection from {} closed before it authenticated: {}{}", w.conn->peer(), reason, note);
     }
     // Erase later: we may be inside one of this worker's handlers.
     asio::post(io_, [this, id] {
@@ -1148,6 +1154,7 @@ class Master {
   asio::io_context io_;
   std::shared_ptr<asio::ssl::context> tls_;       // --tls-cert/--tls-key given
   std::map<std::string, int> tls_handshakes_;      // per peer address, TLS handshakes under way
+  HostLogBudget connection_log_;  // the warnings about connections that never became workers
   asio::ip::tcp::acceptor acceptor_;
   asio::signal_set signals_;
   asio::steady_timer tick_;

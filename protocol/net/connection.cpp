@@ -306,11 +306,12 @@ void Connection::send(const protocol::Message& message) {
 
 void Connection::send_encoded(std::vector<std::uint8_t> bytes) {
   if (closed_ || closing_after_flush_ || bytes.empty()) return;
-  if (queued_bytes_ + bytes.size() > max_queued_bytes_) {
-    finish(peer_ + " is not reading: " + std::to_string((queued_bytes_ + bytes.size()) >> 20) + " MiB queued");
+  const std::size_t cost = bytes.size() + kQueuedMessageOverhead;
+  if (queued_bytes_ + cost > max_queued_bytes_) {
+    finish(peer_ + " is not reading: " + std::to_string((queued_bytes_ + cost) >> 20) + " MiB queued");
     return;
   }
-  queued_bytes_ += bytes.size();
+  queued_bytes_ += cost;
   queue_.push_back(std::move(bytes));
   if (!writing_) schedule_write();
 }
@@ -360,7 +361,7 @@ void Connection::write_next() {
     }
     bytes_sent_ += n;
     for (std::size_t i = 0; i < writing_count_; ++i) {
-      queued_bytes_ -= queue_.front().size();
+      queued_bytes_ -= queue_.front().size() + kQueuedMessageOverhead;
       queue_.pop_front();
     }
     write_next();

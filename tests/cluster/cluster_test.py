@@ -744,6 +744,20 @@ def case_bad_peers(c):
         fail(f"(e) a worker with the wrong token: {describe_rc(rc)}, expected a non-zero exit status")
     expect_log(intruder, r"rejected this worker", "(e) that the master rejected it", timeout=1)
 
+    # (f) 40 connections opened and closed at once: the warnings about connections that never
+    # became workers are bounded per host (HostLogBudget: 20 a minute, the last saying so).
+    budgeted = r"(closed before it authenticated|refused connection from|TLS handshake with)"
+    for _ in range(40):
+        socket.create_connection((host, port), timeout=10).close()
+    expect_log(master, r"more such lines about 127\.0\.0\.1 are left out for 60 s", "(f) the last line of the budget",
+               watch=[master])
+    time.sleep(0.5)  # any line past the budget would come with the others
+    lines = [line for line in master.log().splitlines() if re.search(budgeted, line) and "127.0.0.1" in line]
+    if len(lines) != 20:
+        fail(f"(f) {len(lines)} lines about connections from 127.0.0.1 that never became workers, expected 20:\n"
+             + "\n".join(lines))
+    print(f"(f) {lines[-1].strip()}")
+
     if not master.alive():
         fail("the master finished before every bad peer was tried: make the job longer")
     expect_exit(master, 0, 90, "finish every frame despite the bad peers")

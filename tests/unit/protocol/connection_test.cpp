@@ -464,5 +464,32 @@ TEST(Connection, MessagesQueuedInOneHandlerLeaveInFewWrites) {
   EXPECT_TRUE(drained);
 }
 
+TEST(Connection, SmallMessagesToAPeerThatDoesNotReadCountWhatTheyHold) {
+  // A peer that reads nothing: the queue's limit is reached after limit / (bytes + overhead)
+  // heartbeats, each 32 bytes on the wire (the socket's buffers take some before they fill).
+  asio::io_context io;
+  Pair pair = connect_pair(io);
+  std::string closed;
+  pair.sender->start([](proto::Message&&, std::size_t) {}, [&](const std::string& reason) { closed = reason; });
+  const std::size_t limit = std::size_t{1} << 20;
+  pair.sender->set_max_queued_bytes(limit);
+  const std::size_t message = proto::kHeaderSize + 16;
+  const std::size_t cost = message + Connection::kQueuedMessageOverhead;
+  int sent = 0;
+  asio::post(io, [&] {
+    for (; sent < 1000000 && pair.sender->is_open(); ++sent) {
+      proto::Heartbeat hb;
+      hb.seq = static_cast<std::uint64_t>(sent);
+      pair.sender->send(hb);
+    }
+    io.stop();
+  });
+  io.run_for(std::chrono::seconds(30));
+  EXPECT_FALSE(pair.sender->is_open());
+  EXPECT_NE(closed.find("is not reading"), std::string::npos) << closed;
+  // All sent within one handler: nothing was written yet, so every message stayed queued.
+  EXPECT_EQ(static_cast<std::size_t>(sent), limit / cost + 1) << "the message over the limit closes it";
+}
+
 }  // namespace
 }  // namespace rtc::net
