@@ -93,6 +93,10 @@ struct Worker {
   /// their bytes on the wire.
   std::map<std::pair<std::uint32_t, std::uint32_t>, std::pair<proto::TileMarks, std::size_t>> pending_marks;
   bool rejected = false;  // an Error was sent; closing once it is flushed
+  /// Since when it has held tiles without returning one: its last result, or the assignment
+  /// that gave an idle worker work. A worker past Master::stalled_after() is named once.
+  Clock::time_point waiting_since;
+  bool stall_noted = false;
 
   [[nodiscard]] std::string describe() const {
     std::string s = label + " (" + (hello.name.empty() ? std::string("?") : hello.name) + " at " + conn->peer();
@@ -627,6 +631,11 @@ class Master {
                         ": the result does not match its assignment: " + mismatch);
     }
     const auto key = std::make_pair(r.sequence, r.tile);
+    w.waiting_since = Clock::now();
+    if (w.stall_noted) {
+      w.stall_noted = false;
+      spdlog::info("worker {} returns tiles again", w.describe());
+    }
     const auto sent = w.assigned_at.find(key);
     if (sent != w.assigned_at.end()) {
       const double ms = ms_between(sent->second, Clock::now());
@@ -934,6 +943,7 @@ class Master {
       f.started_at = now;
     }
     if (a.reissue) ++f.stats.reissued_tiles;
+    if (queue_.outstanding(w.id) <= 1) w.waiting_since = now;  // this tile is its only one: it was idle
     announce(w, f);
     proto::TileAssign t;
     t.sequence = sequence;
@@ -1021,6 +1031,16 @@ class Master {
           w->conn->close("missed heartbeats: nothing heard for " + std::to_string(options_.heartbeat_timeout_ms) + " ms");
           continue;
         }
+        if (w->state == Worker::State::Ready && !w->stall_noted && !w->rejected && queue_.outstanding(w->id) > 0 &&
+            now - w->waiting_since > stalled_after()) {
+          // Heard from (it answers heartbeats) but returning nothing: render threads stuck, a
+          // machine swapping, a peer that hoards. Its tiles go to others once overdue.
+          w->stall_noted = true;
+          spdlog::warn("worker {} holds {} tiles and has returned none in {:.1f} s (the usual round trip is {:.0f} ms), "
+                       "though it answers heartbeats: other workers take its tiles once they are overdue",
+                       w->describe(), queue_.outstanding(w->id), std::chrono::duration<double>(now - w->waiting_since).count(),
+                       tile_latency_ms_);
+        }
         if (w->state == Worker::State::Ready || w->state == Worker::State::Scene) {
           proto::Heartbeat hb;
           hb.seq = heartbeat_seq_;
@@ -1040,6 +1060,12 @@ class Master {
       finish_frames();
       dispatch();
     }
+  }
+
+  /// How long a worker may hold tiles without returning one before it is named: 10 s, or 10
+  /// times the usual round trip of a tile where that is longer.
+  [[nodiscard]] std::chrono::milliseconds stalled_after() const {
+    return std::chrono::milliseconds(static_cast<std::int64_t>(std::max(10000.0, 10 * tile_latency_ms_)));
   }
 
   // " | 11 of 24 frames, 0:00:03 left" (from the mean time a frame so far), or for --loop the

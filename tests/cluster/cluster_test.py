@@ -907,6 +907,46 @@ def case_signal_while_writing(c):
     print(f"{path}: {size} bytes written after the signal")
 
 
+def case_worker_stalled(c):
+    """A worker that answers heartbeats but returns no tile (render threads stuck, a peer that
+    hoards) is named once it has held tiles for 10 s without returning one; the other worker
+    takes its tiles once they are overdue, and every frame comes out. The warning comes once."""
+    scene = [*SMALL, "--tile", "16", *WHOLE]
+    stats = c.path("stats.json")
+    master, addr, _ = c.start_master("master", [*scene, "--loop", "60", "--stats-json", stats, "--min-workers", "2",
+                                                "--link-mbps", "1000"])
+    stuck = FakeWorker(addr, "stuck")
+    stuck.join()
+    keeper = c.start_worker("keeper", addr, 1)
+    held = stuck.tiles()
+    start = time.monotonic()
+    warned = None
+    # Answer heartbeats (type 12, with a HeartbeatAck, 13, echoing its 16 bytes) for up to 20 s.
+    while time.monotonic() - start < 20 and warned is None:
+        for t, payload in stuck.read_until(12, timeout=5):
+            if t == 12:
+                stuck.sock.sendall(message(13, payload))
+        warned = re.search(r".*worker w\d+ \(stuck at [^)]*\) holds (\d+) tiles and has returned none in ([\d.]+) s.*",
+                           master.log())
+    if warned is None:
+        fail(f"the master did not name a worker that held {len(held)} tiles for 20 s without returning one")
+    if float(warned.group(2)) < 10:
+        fail(f"the stalled worker was named after {warned.group(2)} s, before the 10 s it may take: {warned.group(0)}")
+    print(f"named after {time.monotonic() - start:.1f} s: {warned.group(0).strip()}")
+    if len(read_stats(stats)[0]) < 2:
+        fail("the keeper did not finish frames while the stuck worker held tiles")
+    for _ in range(3):  # three more heartbeats answered: no second warning
+        for t, payload in stuck.read_until(12, timeout=5):
+            if t == 12:
+                stuck.sock.sendall(message(13, payload))
+    if master.log().count("has returned none in") != 1:
+        fail("the stalled worker was named more than once")
+    stuck.close()
+    master.send(signal.SIGINT)
+    expect_exit(master, 0, 60, "finish the frames in flight after SIGINT")
+    expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
+
+
 def case_worker_frozen(c):
     # A worker that stops answering (SIGSTOP: its socket stays open) is dropped after
     # --heartbeat-timeout; its tiles go to the other worker and every frame still comes out.
@@ -2334,6 +2374,7 @@ CASES = {
     "master_dies": case_master_dies,
     "failing_workers": case_failing_workers,
     "master_cli_errors": case_master_cli_errors,
+    "worker_stalled": case_worker_stalled,
     "launch_local": case_launch_local,
     "launch_local_failures": case_launch_local_failures,
 }
