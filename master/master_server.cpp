@@ -93,6 +93,7 @@ struct Worker {
   /// their bytes on the wire.
   std::map<std::pair<std::uint32_t, std::uint32_t>, std::pair<proto::TileMarks, std::size_t>> pending_marks;
   bool rejected = false;  // an Error was sent; closing once it is flushed
+  bool said_hello = false;  // its Hello has come (hello and threads hold what it said)
   /// Since when it has held tiles without returning one: its last result, or the assignment
   /// that gave an idle worker work. A worker past Master::stalled_after() is named once.
   Clock::time_point waiting_since;
@@ -100,8 +101,10 @@ struct Worker {
 
   [[nodiscard]] std::string describe() const {
     std::string s = label + " (" + (hello.name.empty() ? std::string("?") : hello.name) + " at " + conn->peer();
-    if (hello.threads > 0) {
-      s += ", " + std::to_string(hello.threads) + (hello.threads == 1 ? " thread, " : " threads, ") + hello.isa;
+    if (said_hello) {
+      // The threads its share is sized by (the claim clamped to 1..256), and the claim where it differs.
+      s += ", " + std::to_string(threads) + (threads == 1 ? " thread" : " threads") +
+           (hello.threads != threads ? " (claims " + std::to_string(hello.threads) + ")" : std::string()) + ", " + hello.isa;
     }
     return s + ")";
   }
@@ -433,6 +436,7 @@ class Master {
   void handle(Worker& w, proto::Hello&& m, std::size_t) {
     if (w.state != Worker::State::AwaitHello) return unexpected(w, "Hello");
     w.hello = std::move(m);
+    w.said_hello = true;
     // What the peer says of itself is logged: no control character of it reaches the log.
     w.hello.name = printable(w.hello.name);
     w.hello.isa = printable(w.hello.isa);

@@ -110,8 +110,8 @@ def parse_challenge(payload):
     return nonce, auth_required, payload[37:37 + n]
 
 
-def hello_payload(name, build):
-    return (struct.pack("<HII", VERSION, 2, 1) + wire_str(b"sse4.2") + wire_str(build) +
+def hello_payload(name, build, threads=1):
+    return (struct.pack("<HII", VERSION, 2, threads) + wire_str(b"sse4.2") + wire_str(build) +
             wire_str(name.encode()))
 
 
@@ -1489,8 +1489,9 @@ class FakeWorker:
     """A worker written here, on a raw socket, that follows the protocol as far as asked
     (Challenge, Hello, Auth, scene) and then misbehaves on purpose."""
 
-    def __init__(self, address, name):
+    def __init__(self, address, name, threads=1):
         host, port = split_address(address)
+        self.threads = threads
         self.sock = socket.create_connection((host, port), timeout=10)
         self.me = "%s:%d" % self.sock.getsockname()[:2]
         self.name = name
@@ -1521,7 +1522,7 @@ class FakeWorker:
     def join(self, have_scene=True):
         """Authenticates (no token) and takes the scene; returns the scene offer's hash."""
         _, _, build = parse_challenge(self.read_until(MSG_CHALLENGE)[-1][1])
-        self.sock.sendall(message(MSG_HELLO, hello_payload(self.name, build)) + message(MSG_AUTH, bytes(32)))
+        self.sock.sendall(message(MSG_HELLO, hello_payload(self.name, build, self.threads)) + message(MSG_AUTH, bytes(32)))
         offer = self.read_until(MSG_SCENE_OFFER)[-1][1]
         scene_hash = offer[:32]
         self.sock.sendall(message(MSG_SCENE_REQUEST, scene_hash + bytes([1 if have_scene else 0])))
@@ -1704,8 +1705,9 @@ def case_faults(c):
         fail(f"(a2) the bad message was named only after the flush timeout: {m.group(0)}")
     print(f"(a2) {m.group(0).strip()}")
 
-    # (b) a result for a tile it was not given.
-    b = FakeWorker(addr, "foreign")
+    # (b) a result for a tile it was not given, from a worker claiming 0 threads (it gets one
+    # thread's share, and the log shows both).
+    b = FakeWorker(addr, "foreign", threads=0)
     b.join()
     held = b.tiles()
     # A frame sequence far ahead of any open frame: none of its tiles can have been handed out,
@@ -1719,7 +1721,8 @@ def case_faults(c):
     if not closed:
         fail("(b) the master kept the connection of a worker sending a foreign tile")
     errors = [p for t, p in b.pending + parse_messages(b.buf + data) if t == MSG_ERROR]
-    m = expect_log(master, rf"(?=.*{re.escape(b.me)}\b)(?=.*result for tile {foreign} of frame sequence {seq} that it does not "
+    m = expect_log(master, rf"(?=.*foreign at {re.escape(b.me)}, 1 thread \(claims 0\), sse4\.2\))"
+                           rf"(?=.*result for tile {foreign} of frame sequence {seq} that it does not "
                            r"hold \(never given, or already returned\))",
                    "(b) the foreign result refused", watch=[master])
     print(f"(b) {m.string.strip()} (Error sent: {bool(errors)})")
