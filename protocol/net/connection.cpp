@@ -383,10 +383,7 @@ void Connection::reject(const std::string& reason, protocol::ErrorCode code, con
   // The owner hears now, not once the peer has read the Error or the flush has timed out (up
   // to 2 s later, when a master could have finished and logged the close at debug level).
   rejected_peer_ = true;
-  auto self = shared_from_this();
-  CloseHandler handler = std::move(on_close_);
-  on_message_ = nullptr;
-  if (handler) handler(reason);
+  tell_owner_closed(reason);
 }
 
 void Connection::close_after_flush(const std::string& reason, std::chrono::milliseconds timeout) {
@@ -433,7 +430,12 @@ void Connection::finish(const std::string& reason) {
   queue_.clear();
   queued_bytes_ = 0;
   on_drained_ = nullptr;
-  // The handler may drop the last outside reference; `self` keeps us alive until it returns.
+  tell_owner_closed(reason);
+}
+
+void Connection::tell_owner_closed(const std::string& reason) {
+  // Once: the handler is moved out. It may drop the last outside reference; `self` keeps us
+  // alive until it returns.
   auto self = shared_from_this();
   CloseHandler handler = std::move(on_close_);
   on_message_ = nullptr;

@@ -149,6 +149,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   /// Sends Error{code, text} to the peer and closes once that is sent; the close handler hears
   /// `reason` at once (the peer is done with, whether or not it reads the Error).
   void reject(const std::string& reason, protocol::ErrorCode code, const std::string& text);
+  /// Calls the close handler with `reason`, at most once, and hands on no more messages
+  /// (finish(), and reject() before the socket closes).
+  void tell_owner_closed(const std::string& reason);
   /// Reads what the peer has sent, up to the read buffer's free space, then handles it.
   void read_more();
   /// Handles every whole message in the read buffer, in order, until it holds only part of
