@@ -610,6 +610,7 @@ class WorkerClient {
 
   void handle(proto::SceneOffer&& m) {
     if (!welcomed_) return unexpected();
+    m.name = printable(m.name);  // the master's words, logged below
     proto::SceneRequest request;
     request.hash = m.hash;
     if (scene_ && scene_->hash() == m.hash) {

@@ -1132,13 +1132,22 @@ def case_bad_master(c):
             conn.sendall(HEADER.pack(MAGIC, VERSION, 12, len(payload), zlib.crc32(payload) ^ 1) + payload)
             expect_error_and_close(conn, "a CRC mismatch")
         expect_log(w, r"(?i)crc", "the CRC mismatch to be reported")
-        # 4. A master that says goodbye: the worker exits 0.
+        # 4. A master that offers a scene whose name would forge a log line, then says goodbye:
+        # the name is logged escaped, and the worker exits 0.
         with accept("again after the CRC mismatch") as conn:
-            conn.sendall(challenge() + message(15, wire_str(b"fake master done")))
+            welcome = message(4, struct.pack("<III", 1, 1000, 4))
+            forged = b"tree\n[00:00:00.000] [error] FORGED\x1b[31m"
+            offer = message(MSG_SCENE_OFFER, os.urandom(32) + struct.pack("<Q", 1000) + wire_str(forged))
+            conn.sendall(challenge() + welcome + offer)
+            expect_log(w, r"receiving scene tree\\n\[00:00:00\.000\] \[error\] FORGED\\x1b\[31m \(0\.0 MB\)",
+                       "the offered scene's name, escaped")
+            conn.sendall(message(15, wire_str(b"fake master done")))
             read_until_closed(conn, 10)
         rc = w.wait(15, "exit after the goodbye")
         if rc != 0:
             fail(f"rtc-worker: {describe_rc(rc)} after the master's goodbye, expected 0")
+        if re.search(r"^\[00:00:00\.000\] \[error\] FORGED", w.log(), re.M) or "\x1b[31m" in w.log():
+            fail("the worker's log holds the forged line or the raw escape: the scene name was logged raw")
 
 
 def case_big_message_before_auth(c):
