@@ -270,6 +270,7 @@ class Master {
                  options_.token.empty() ? "no token: loopback only" : "token required", tls_ ? "TLS" : "no TLS",
                  options_.min_workers,
                  options_.min_workers == 1 ? "" : "s");
+    last_wait_log_ = Clock::now();  // the line above says it; the next in 5 s
     if (!options_.ready_file.empty()) {
       const std::string tmp = options_.ready_file + ".tmp";
       std::error_code fs_ec;
@@ -801,6 +802,26 @@ class Master {
     return n;
   }
 
+  /// Every 5 s while nothing renders for want of workers: before the run, fewer ready than
+  /// --min-workers (some may be ready already); after its start, none ready with frames open.
+  void log_waiting(Clock::time_point now) {
+    const std::size_t ready = ready_workers();
+    const auto needed = static_cast<std::size_t>(options_.min_workers);
+    const bool short_of_workers = run_started_ ? ready == 0 && queue_.frames_open() > 0 : ready < needed;
+    if (!short_of_workers || ms_between(last_wait_log_, now) < 5000) return;
+    last_wait_log_ = now;
+    std::size_t loading = 0;
+    for (const auto& [id, w] : workers_) loading += w->state == Worker::State::Scene ? 1 : 0;
+    const std::string loading_text = loading == 0 ? "" : fmt::format(", {} taking the scene", loading);
+    if (run_started_) {
+      spdlog::info("waiting for workers on {}: none ready{}; {} tiles waiting", listening_on_, loading_text,
+                   queue_.waiting());
+    } else {
+      spdlog::info("waiting for workers on {}: {} of the {} needed to start ready{}", listening_on_, ready, needed,
+                   loading_text);
+    }
+  }
+
   void maybe_start() {
     if (run_started_ || ready_workers() < static_cast<std::size_t>(options_.min_workers)) return;
     run_started_ = true;
@@ -1054,11 +1075,7 @@ class Master {
         }
       }
     }
-    if (ms_between(last_wait_log_, now) >= 5000 && ready_workers() == 0 && (!run_started_ || queue_.frames_open() > 0)) {
-      last_wait_log_ = now;
-      spdlog::info("waiting for workers on {}: {} ready, {} needed to start; {} tiles waiting", listening_on_,
-                   ready_workers(), options_.min_workers, queue_.waiting());
-    }
+    log_waiting(now);
     // The tail of a frame may need re-issuing although no message arrived.
     if (run_started_) {
       finish_frames();

@@ -521,6 +521,12 @@ def case_worker_killed_midframe(c):
                                                 os.path.join(out, "m_####.png"), "--stats-json", stats,
                                                 "--min-workers", "2"])
     keeper = c.start_worker("keeper", addr, 1)
+    # One of the two: the master says what it waits for (every 5 s), and starts nothing.
+    m = expect_log(master, r"waiting for workers on \S+: 1 of the 2 needed to start ready", "the wait for a second worker",
+                   timeout=15, watch=[master])
+    print(f"master: {m.group(0)}")
+    if read_stats(stats)[0]:
+        fail("the master rendered a frame with one worker of --min-workers 2")
     victim = c.start_worker("victim", addr, 1)
     wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [master])
     if not master.alive():
