@@ -1,15 +1,11 @@
 // rtc-master: splits frames of a scene into tiles, hands them to rtc-worker processes over TCP,
 // reassembles and writes the frames, and logs the frame rate next to the link-bound frame rate.
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <new>
 #include <optional>
 #include <string>
-
-#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -143,13 +139,9 @@ int run(int argc, char** argv) {
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
   if (app.count("--out-dir") > 0 && out_dir.empty()) throw rtc::Error("--out-dir: the folder is empty");
   if (!out_dir.empty()) {  // named as such, and before the (possibly long) load
-    std::error_code ec;
-    if (!std::filesystem::is_directory(out_dir, ec)) {
-      throw rtc::Error("--out-dir: " + out_dir +
-                       (std::filesystem::exists(out_dir, ec) ? " is not a folder" : " does not exist (make it first)"));
-    }
-    if (::access(out_dir.c_str(), W_OK) != 0) {
-      throw rtc::Error("--out-dir: cannot write to " + out_dir + ": " + std::strerror(errno));
+    if (const std::string problem = rtc::folder_problem(out_dir, true); !problem.empty()) {
+      std::error_code ec;
+      throw rtc::Error("--out-dir: " + problem + (std::filesystem::exists(out_dir, ec) ? "" : " (make it first)"));
     }
   }
   // The scene's name is known after the load; the file kind (PNG) and the folder are not.

@@ -1,12 +1,8 @@
 // Output file names for frame sequences: "f_####.exr", "f_%04d.exr" or an inserted "_NNNN".
 #include "common/image/image.h"
 
-#include <unistd.h>
-
-#include <cerrno>
 #include <cstddef>
 #include <algorithm>
-#include <cstring>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -192,9 +188,7 @@ std::filesystem::path check_output_pattern(const std::string& pattern, int first
     checked_folder = folder;
     // write_image's own checks, then what only writing finds out.
     if (const std::string problem = output_file_problem(path); !problem.empty()) throw bad(problem);
-    if (::access(folder.c_str(), W_OK) != 0) {
-      throw bad("cannot write to folder " + folder.string() + ": " + std::strerror(errno));
-    }
+    if (const std::string problem = folder_problem(folder, true); !problem.empty()) throw bad(problem);
   }
   if (std::filesystem::exists(first, ec)) {
     spdlog::warn("--out: {} exists: {} overwritten", first.string(),

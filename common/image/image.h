@@ -117,6 +117,10 @@ enum class ImageFileKind { Exr, Png, Tiff, Jpeg, Ppm };
 /// folder that does not exist or is not a folder; empty when neither.
 [[nodiscard]] std::string output_file_problem(const std::filesystem::path& path);
 
+/// Why files cannot go into `folder`: it does not exist, is not a folder, or (when `writable`
+/// is asked for) this process may not write to it; empty when none. The reason names the folder.
+[[nodiscard]] std::string folder_problem(const std::filesystem::path& folder, bool writable);
+
 /// Why write_image cannot write a `width` x `height` frame to `path`'s format (JPEG: at most
 /// 65500 pixels a side); empty when it can. Known before rendering.
 [[nodiscard]] std::string output_size_problem(const std::filesystem::path& path, int width, int height);

@@ -12,6 +12,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstddef>
 #include <functional>
 #include <iterator>
@@ -354,11 +355,17 @@ std::string output_file_problem(const fs::path& path) {
                ? fmt::format("the name has no extension to choose the format by (use {})", kFormats)
                : fmt::format("unsupported extension '{}' (use {})", path.extension().string(), kFormats);
   }
-  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  return folder_problem(path.parent_path().empty() ? fs::path(".") : path.parent_path(), false);
+}
+
+std::string folder_problem(const fs::path& folder, bool writable) {
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
     return fs::exists(folder, ec) ? fmt::format("'{}' is not a folder", folder.string())
                                   : fmt::format("folder '{}' does not exist", folder.string());
+  }
+  if (writable && ::access(folder.c_str(), W_OK) != 0) {
+    return fmt::format("cannot write to folder {}: {}", folder.string(), std::strerror(errno));
   }
   return {};
 }

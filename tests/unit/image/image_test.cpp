@@ -797,6 +797,24 @@ TEST(FramePattern, BadPatternsThrowNamingThePattern) {
 
 using OutputPattern = ImageFileTest;
 
+// rtc-master's --out-dir and every --out folder: one check, one wording.
+TEST_F(OutputPattern, FolderProblemNamesTheFolderAndTheReason) {
+  const std::string d = dir_.string();
+  EXPECT_EQ(folder_problem(dir_, true), "");
+  EXPECT_EQ(folder_problem(dir_ / "missing", false), "folder '" + d + "/missing' does not exist");
+  {
+    std::ofstream(dir_ / "plain") << "x";
+  }
+  EXPECT_EQ(folder_problem(dir_ / "plain", true), "'" + d + "/plain' is not a folder");
+  if (::geteuid() != 0) {  // root writes anywhere
+    fs::create_directories(dir_ / "locked");
+    fs::permissions(dir_ / "locked", fs::perms::owner_read | fs::perms::owner_exec);
+    EXPECT_EQ(folder_problem(dir_ / "locked", false), "");
+    EXPECT_EQ(folder_problem(dir_ / "locked", true), "cannot write to folder " + d + "/locked: Permission denied");
+    fs::permissions(dir_ / "locked", fs::perms::owner_all);
+  }
+}
+
 TEST_F(OutputPattern, CheckedBeforeRendering) {
   const auto error_of = [](const std::string& pattern, bool multiple) -> std::string {
     try {
