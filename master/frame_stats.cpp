@@ -28,20 +28,32 @@ std::string link_text(double bytes_per_s, double line_mbit_per_s, const std::str
 }  // namespace
 
 std::string format_frame_line(const FrameStats& s) {
-  std::string tiles;
-  for (const auto& [name, n] : s.tiles_by_worker) tiles += fmt::format(" {}:{}", name, n);
-  std::string line = fmt::format(
-      "frame {} [seq {}]: {:.1f} ms, {:.2f} fps | {:.3f} MB in, {:.1f} MB/s, {}+{} {:.2f}:1 | ", s.frame, s.sequence,
-      s.wall_ms, s.fps(), s.wire_bytes / 1e6, s.achieved_mb_per_s(), s.wire_format, s.compression, s.compression_ratio());
-  if (s.bound_fps() > 0) {
-    line += fmt::format("link bound {:.2f} fps ({})", s.bound_fps(), link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source));
+  // The frame rate counts from the previous frame's completion (frames overlap in flight), the
+  // frame's own time from its first tile out: both are named, as they can differ a thousandfold
+  // (a frame whose tiles all finished just after the one before it).
+  std::string line = fmt::format("frame {} [seq {}]: {:.2f} fps (done ", s.frame, s.sequence, s.fps());
+  if (s.sequence > 0) line += fmt::format("{:.1f} ms after the previous frame, ", s.interval_ms);
+  line += fmt::format("{:.1f} ms after its first tile) | ", s.wall_ms);
+  if (s.wire_bytes == 0) {
+    line += "no pixels sent";
   } else {
-    line += "link bound unknown (not measured yet)";
+    line += fmt::format("{:.3f} MB in, {:.1f} MB/s, {}+{} {:.2f}:1 | ", s.wire_bytes / 1e6, s.achieved_mb_per_s(),
+                        s.wire_format, s.compression, s.compression_ratio());
+    if (s.bound_fps() > 0) {
+      line += fmt::format("link bound {:.2f} fps ({})", s.bound_fps(), link_text(s.link_bytes_per_s, s.link_line_mbit_per_s, s.link_source));
+    } else {
+      line += "link bound unknown (not measured yet)";
+    }
   }
-  line += " | tiles" + tiles;
+  if (!s.tiles_by_worker.empty()) {
+    line += " | tiles";
+    for (const auto& [name, n] : s.tiles_by_worker) line += fmt::format(" {}:{}", name, n);
+  }
   if (s.temporal) {
     line += fmt::format(" | traced {}/{} tiles ({})", s.tiles_traced, s.tiles_total, s.temporal_why);
-    if (s.tiles_traced < s.tiles_total && s.full_render_ms > 0) {
+    if (s.tiles_traced == 0 && s.full_render_ms > 0) {
+      line += fmt::format(", no work (a whole trace took {:.1f} ms)", s.full_render_ms);
+    } else if (s.tiles_traced < s.tiles_total && s.full_render_ms > 0) {
       line += fmt::format(", work {:.1f} of {:.1f} ms ({:.1f}x less), {:.3f} of {:.3f} MB", s.render_ms, s.full_render_ms,
                           s.full_render_ms / std::max(s.render_ms, 1e-3), s.wire_bytes / 1e6, s.full_wire_bytes / 1e6);
     }
@@ -146,15 +158,18 @@ std::string format_summary(const RunSummary& s) {
     if (!s.stopped.empty()) out += fmt::format(" ({})", s.stopped);
     return out;
   }
-  std::string frames = fmt::format("{} frames", s.frames);
+  std::string frames = fmt::format("{} frame{}", s.frames, s.frames == 1 ? "" : "s");
   if (s.frames_planned > 0 && s.frames < s.frames_planned) {
     frames = fmt::format("{} of {} frames ({}: {} not rendered)", s.frames, s.frames_planned,
                          s.stopped.empty() ? std::string("stopped") : s.stopped, s.frames_planned - s.frames);
   } else if (!s.stopped.empty()) {
     frames += fmt::format(" ({})", s.stopped);
   }
-  std::string out = fmt::format("summary: {} in {:.2f} s: median {:.2f} fps, mean {:.2f} fps; {:.3f} MB/frame ({}+{} {:.2f}:1)",
-                                frames, s.total_s, s.median_fps, s.mean_fps, s.median_bytes_per_frame / 1e6,
+  // The run's own rate first: a median over frames that finish in bursts (temporal coherence
+  // keeping most of a frame, frames in flight finishing together) can be far above it.
+  std::string out = fmt::format("summary: {} in {:.2f} s: {:.2f} fps over the run (median of the frames' {:.2f} fps); "
+                                "{:.3f} MB/frame ({}+{} {:.2f}:1)",
+                                frames, s.total_s, s.mean_fps, s.median_fps, s.median_bytes_per_frame / 1e6,
                                 s.wire_format, s.compression, s.compression_ratio);
   if (s.median_bound_fps > 0) {
     // Both medians over the same frames: those that sent pixels.

@@ -209,6 +209,7 @@ int run(int argc, char** argv) {
                                     o.loop_seconds > 0 || (requested && requested->last > requested->first));
   }
 
+  rtc::check_listen(o);  // before the (possibly long) load, as every other option
   const rtc::Scene scene = rtc::load_scene_from_cli(scene_options);
   if (!out_dir.empty()) o.out_pattern = rtc::numbered_frame_pattern(out_dir, scene.name);
   if (scene.width > 32768 || scene.height > 32768) {

@@ -121,9 +121,26 @@ struct OpenFrame {
   Image image;
   bool has_image = false;
   bool started = false;
+  bool to_trace = false;  ///< has tiles to trace, or that may be (temporal coherence): announced to workers
   Clock::time_point started_at;
   FrameStats stats;
 };
+
+/// --listen resolved, and refused off loopback without a token.
+asio::ip::tcp::endpoint listen_endpoint(asio::io_context& io, const MasterOptions& options) {
+  const net::HostPort hp = net::parse_host_port(options.listen, "--listen");
+  asio::ip::tcp::resolver resolver(io);
+  asio::error_code ec;
+  const auto results = resolver.resolve(hp.host, std::to_string(hp.port),
+                                        asio::ip::resolver_base::passive | asio::ip::resolver_base::numeric_service, ec);
+  if (ec || results.empty()) throw Error("--listen " + options.listen + ": cannot resolve " + hp.host + ": " + ec.message());
+  const asio::ip::tcp::endpoint endpoint = *results.begin();
+  if (!endpoint.address().is_loopback() && options.token.empty()) {
+    throw Error("--listen " + options.listen + " is not a loopback address: anyone who can reach it could take "
+                "tiles and the scene; give --token-file so workers must prove the token");
+  }
+  return endpoint;
+}
 
 class Master {
  public:
@@ -232,6 +249,9 @@ class Master {
     if (run_started_) {
       summary.io_cpu_s = cpu_seconds(CLOCK_THREAD_CPUTIME_ID) - io_cpu_at_start_;  // this is the io thread
       summary.process_cpu_s = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID) - process_cpu_at_start_;
+      // The two clocks are read at slightly different moments: with the other threads idle the
+      // thread's could come out a few hundred ns above the whole process's.
+      summary.io_cpu_s = std::min(summary.io_cpu_s, summary.process_cpu_s);
     }
     spdlog::info("{}", format_summary(summary));
     if (stats_file_.is_open()) {
@@ -247,17 +267,8 @@ class Master {
   // ---- listening and accepting -------------------------------------------------------------
 
   void listen() {
-    const net::HostPort hp = net::parse_host_port(options_.listen, "--listen");
-    asio::ip::tcp::resolver resolver(io_);
+    const asio::ip::tcp::endpoint endpoint = listen_endpoint(io_, options_);
     asio::error_code ec;
-    const auto results = resolver.resolve(hp.host, std::to_string(hp.port),
-                                          asio::ip::resolver_base::passive | asio::ip::resolver_base::numeric_service, ec);
-    if (ec || results.empty()) throw Error("--listen " + options_.listen + ": cannot resolve " + hp.host + ": " + ec.message());
-    const asio::ip::tcp::endpoint endpoint = *results.begin();
-    if (!endpoint.address().is_loopback() && options_.token.empty()) {
-      throw Error("--listen " + options_.listen + " is not a loopback address: anyone who can reach it could take "
-                  "tiles and the scene; give --token-file so workers must prove the token");
-    }
     acceptor_.open(endpoint.protocol(), ec);
     if (!ec) acceptor_.set_option(asio::ip::tcp::acceptor::reuse_address(true), ec);
     if (!ec) acceptor_.bind(endpoint, ec);
@@ -517,13 +528,13 @@ class Master {
       }
       w.conn->send(grid);
     }
-    announce_open_frames(w);
     spdlog::info("worker {} joined: {} cores, build {}; scene ready in {} ms; {} tiles outstanding at most",
                  w.describe(), w.hello.cores, w.hello.build_id, m.load_ms, w.max_outstanding);
     if (link_bytes_per_s_ <= 0 && !probe_running_) {
       proto::ProbeRequest probe;
       probe.bytes = options_.probe_bytes;
       w.probing = true;
+      w.conn->prepare_payload_buffer(options_.probe_bytes + 64);  // its size prefix and more
       w.probe_sent = Clock::now();
       probe_running_ = true;
       w.conn->send(probe);
@@ -532,11 +543,12 @@ class Master {
       probe_timer_ = std::make_unique<asio::steady_timer>(io_, std::chrono::seconds(5));
       probe_timer_->async_wait([this](const asio::error_code& ec) {
         if (ec || !probe_running_) return;
-        probe_running_ = false;
         spdlog::warn("link probe not finished after 5 s: rendering meanwhile (give --link-mbps on slow links)");
+        end_probe();
         dispatch();
       });
     }
+    announce_open_frames(w);  // none while the probe runs: end_probe() does
     maybe_start();
     dispatch();
   }
@@ -544,12 +556,14 @@ class Master {
   void handle(Worker& w, proto::ProbeData&& m, std::size_t wire) {
     if (!w.probing) return unexpected(w, "ProbeData");
     w.probing = false;
-    probe_running_ = false;
-    if (probe_timer_) probe_timer_->cancel();
-    // Timed from the arrival of the probe's header to its last byte: the request's round trip
-    // and the worker's preparation are left out, TCP's ramp-up is not (it is part of the link).
+    end_probe();
+    // Timed from the arrival of the probe's header to that of its last byte: the request's round
+    // trip, the worker's preparation and the master's decoding (a CRC and a copy of 4 MiB into
+    // fresh memory: 14 ms on a VM, where the bytes took 8) are left out, TCP's ramp-up is not
+    // (it is part of the link).
     const Clock::time_point now = Clock::now();
-    const double seconds = std::max(1e-6, std::chrono::duration<double>(now - w.conn->header_arrived()).count());
+    const double seconds =
+        std::max(1e-6, std::chrono::duration<double>(w.conn->bytes_arrived() - w.conn->header_arrived()).count());
     link_bytes_per_s_ = static_cast<double>(wire - proto::kHeaderSize) / seconds;
     link_source_ = "measured";
     spdlog::info("link measured on {}: {:.1f} Mbit/s ({:.1f} MiB in {:.1f} ms; {:.1f} ms after the request); the link "
@@ -769,10 +783,7 @@ class Master {
     const Worker::State was = w.state;
     w.state = Worker::State::Closed;
     if (w.auth_timer) w.auth_timer->cancel();
-    if (w.probing) {
-      probe_running_ = false;
-      if (probe_timer_) probe_timer_->cancel();
-    }
+    if (w.probing) end_probe();
     const std::size_t requeued = queue_.worker_lost(id);
     if (was == Worker::State::Ready || was == Worker::State::Scene) {
       if (done_) {
@@ -829,8 +840,10 @@ class Master {
     io_cpu_at_start_ = cpu_seconds(CLOCK_THREAD_CPUTIME_ID);
     process_cpu_at_start_ = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID);
     last_complete_ = run_start_;
-    spdlog::info("{} worker{} ready: rendering frames {}-{}{}", ready_workers(), ready_workers() == 1 ? "" : "s",
-                 options_.first_frame, options_.last_frame,
+    const std::string frames = options_.first_frame == options_.last_frame
+                                   ? "frame " + std::to_string(options_.first_frame)
+                                   : "frames " + std::to_string(options_.first_frame) + "-" + std::to_string(options_.last_frame);
+    spdlog::info("{} worker{} ready: rendering {}{}", ready_workers(), ready_workers() == 1 ? "" : "s", frames,
                  options_.loop_seconds > 0 ? " in a loop for " + std::to_string(options_.loop_seconds) + " s" : "");
   }
 
@@ -899,9 +912,10 @@ class Master {
       // epoch (71767457.6 ms in a temporal run).
       f.started_at = Clock::now();
       if (traced == 0) f.started = true;
+      f.to_trace = traced > 0;
       const OpenFrame& opened = frames_.emplace(f.sequence, std::move(f)).first->second;
       for (auto& [id, w] : workers_) {
-        if (traced > 0 && w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
+        if (opened.to_trace && w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
       }
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
@@ -945,7 +959,12 @@ class Master {
 
   // FrameSettings once per worker and frame: when the frame opens (the worker builds its
   // kd-tree while it still traces the frame before), at the latest with its first tile.
+  //
+  // Not while the link probe runs: a kd-tree build on every core of the probing worker (or of
+  // any worker on the same machine, as with launch-local.sh) slowed the probe's 4 MiB from 8 to
+  // 50 ms on loopback, and the link bound with it. Tiles wait for the probe anyway.
   void announce(Worker& w, const OpenFrame& f) {
+    if (probe_running_) return;
     if (!w.announced.insert(f.sequence).second) return;
     proto::FrameSettings settings;
     settings.sequence = f.sequence;
@@ -957,7 +976,19 @@ class Master {
   }
 
   void announce_open_frames(Worker& w) {
-    for (const auto& [sequence, f] : frames_) announce(w, f);
+    for (const auto& [sequence, f] : frames_) {
+      if (f.to_trace) announce(w, f);
+    }
+  }
+
+  /// The link probe is over (its data came, its 5 s ran out, or its worker left): the frames
+  /// held back from every worker meanwhile are announced, and their kd-tree builds begin.
+  void end_probe() {
+    probe_running_ = false;
+    if (probe_timer_) probe_timer_->cancel();
+    for (auto& [id, w] : workers_) {
+      if (w->state == Worker::State::Ready && !w->rejected) announce_open_frames(*w);
+    }
   }
 
   void assign(Worker& w, const TileAssignment& a, Clock::time_point now) {
@@ -1249,6 +1280,20 @@ class Master {
 };
 
 }  // namespace
+
+void check_listen(const MasterOptions& options) {
+  asio::io_context io;
+  const asio::ip::tcp::endpoint endpoint = listen_endpoint(io, options);
+  if (endpoint.port() == 0) return;  // any free port will do
+  // Bound and closed at once (no connection, so no TIME_WAIT): a port another program listens
+  // on is named now rather than after the scene's load. run_master binds it again.
+  asio::ip::tcp::acceptor probe(io);
+  asio::error_code ec;
+  probe.open(endpoint.protocol(), ec);
+  if (!ec) probe.set_option(asio::ip::tcp::acceptor::reuse_address(true), ec);
+  if (!ec) probe.bind(endpoint, ec);
+  if (ec) throw Error("--listen " + options.listen + ": " + ec.message());
+}
 
 int run_master(const Scene& scene, const MasterOptions& options) {
   Master master(scene, options);

@@ -60,4 +60,9 @@ struct MasterOptions {
 /// rtc::Error). Returns the process exit code.
 int run_master(const Scene& scene, const MasterOptions& options);
 
+/// What of --listen can be checked before the scene loads: it resolves, it is a loopback
+/// address unless a token is given, and its port (unless 0) can be bound now. Throws rtc::Error
+/// ("--listen HOST:PORT: <reason>").
+void check_listen(const MasterOptions& options);
+
 }  // namespace rtc

@@ -60,7 +60,14 @@ class SceneSlot {
     if (std::shared_ptr<const FrameState> state = find(frame)) return state;
     std::lock_guard build_lock(build_mutex_);
     if (std::shared_ptr<const FrameState> state = find(frame)) return state;  // built meanwhile
+    const Timer timer;
     std::shared_ptr<const FrameState> state = renderer_.prepare(frame);
+    // The first is the kd-tree build of the whole scene, which the first frame's tiles wait for
+    // (a 2.1 M triangle scene: most of its first frame); later ones rebuild what moved.
+    spdlog::log(first_prepare_ ? spdlog::level::info : spdlog::level::debug,
+                "frame {} prepared (kd-tree{}) in {:.0f} ms", frame, first_prepare_ ? " of the whole scene" : "",
+                timer.elapsed_ms());
+    first_prepare_ = false;
     std::lock_guard lock(map_mutex_);
     // A few frames stay prepared (several are in flight); the oldest goes first.
     if (prepared_.size() >= 4) prepared_.pop_front();
@@ -80,6 +87,7 @@ class SceneSlot {
   proto::Digest hash_;
   Renderer renderer_;
   std::mutex build_mutex_;  // Renderer::prepare calls must not overlap
+  bool first_prepare_ = true;  // guarded by build_mutex_
   std::mutex map_mutex_;    // guards prepared_
   std::deque<std::pair<int, std::shared_ptr<const FrameState>>> prepared_;
 };

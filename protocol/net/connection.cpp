@@ -245,6 +245,15 @@ void Connection::handle_buffered() {
   read_more();
 }
 
+void Connection::prepare_payload_buffer(std::size_t bytes) {
+  if (payload_capacity_ >= bytes) return;
+  payload_.reset();  // before the new one: never both at once
+  payload_ = std::make_unique_for_overwrite<std::uint8_t[]>(bytes);
+  std::memset(payload_.get(), 0, bytes);
+  payload_capacity_ = bytes;
+  small_payloads_in_a_row_ = 0;
+}
+
 void Connection::note_payload(std::size_t size) {
   // A big buffer that only small messages have used for a while (a worker's scene chunks, then
   // tile assignments) is given back. Not after one: heartbeats and marks come between tiles.

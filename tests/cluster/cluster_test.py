@@ -1876,6 +1876,10 @@ def case_master_cli_errors(c):
     with open(degenerate, "w") as f:
         f.write("v\nfrom 0 0 5\nat 0 0 5\nup 0 1 0\nangle 45\nhither 1\nresolution 32 32\n"
                 "l 1 1 1\nf 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n")
+    taken = socket.socket()  # a port another program listens on
+    taken.bind(("127.0.0.1", 0))
+    taken.listen(1)
+    taken_port = taken.getsockname()[1]
     cases = [
         (["--wire", "rgba16"], r"--wire: expected rgba8, half or float"),
         (["--wire", ""], r'--wire: expected rgba8, half or float, got ""'),
@@ -1893,6 +1897,11 @@ def case_master_cli_errors(c):
         (["--out-dir", c.path("missing")], r"--out-dir: folder '.*missing' does not exist \(make it first\)"),
         (["--out-dir", degenerate], r"--out-dir: '.*eye_on_look_at\.nff' is not a folder"),
         ([c.path("no-such-scene.json")], r"no-such-scene.json"),
+        # --listen is judged before the scene loads: its error comes, not the missing scene's.
+        ([c.path("no-such-scene.json"), "--listen", "0.0.0.0:0"],
+         r"--listen 0\.0\.0\.0:0 is not a loopback address: .* give --token-file"),
+        ([c.path("no-such-scene.json"), "--listen", f"127.0.0.1:{taken_port}"],
+         rf"--listen 127\.0\.0\.1:{taken_port}: Address already in use"),
         (["--out", c.path("x_####.xyz")], r"--out: .*x_0000\.xyz: unsupported extension '\.xyz'"),
         (["--out", ""], r"--out: the pattern is empty"),
         (["--frames", ""], r'--frames: expected A-B or A, got ""'),
@@ -1924,6 +1933,7 @@ def case_master_cli_errors(c):
         if os.path.exists(ready):
             fail(f"rtc-master {' '.join(args)}: {ready} is there after it failed (the earlier run's, or its own)")
         print(f"ok: {' '.join(args)} -> {pattern}")
+    taken.close()
     folder = c.path("ready-folder")
     os.makedirs(folder)
     p = c.spawn("master-ready-folder", [c.args.master, *SMALL, "--listen", "127.0.0.1:0", "--ready-file", folder])

@@ -126,6 +126,38 @@ TEST(Connection, PayloadsOfEverySizeArriveWholeWhileTheBufferIsKeptAndGivenBack)
   EXPECT_EQ(pair.receiver->bytes_received(), wire);
 }
 
+TEST(Connection, APreparedPayloadBufferTakesTheNextBigMessage) {
+  // The master prepares the buffer before it asks for a link probe: the probe is read into it
+  // (no new buffer), whole, and the header's and the last byte's arrival times bound its reading.
+  asio::io_context io;
+  Pair pair = connect_pair(io);
+  const std::size_t size = 4u << 20;
+  pair.receiver->prepare_payload_buffer(size + 64);
+  EXPECT_EQ(pair.receiver->payload_buffer_bytes(), size + 64);
+  pair.receiver->prepare_payload_buffer(1000);  // never shrinks it
+  EXPECT_EQ(pair.receiver->payload_buffer_bytes(), size + 64);
+  std::vector<std::uint8_t> received;
+  std::size_t buffer = 0;
+  bool ordered = false;
+  pair.receiver->start(
+      [&](proto::Message&& m, std::size_t) {
+        received = std::move(std::get<proto::ProbeData>(m).bytes);
+        buffer = pair.receiver->payload_buffer_bytes();
+        ordered = pair.receiver->header_arrived() <= pair.receiver->bytes_arrived() &&
+                  pair.receiver->bytes_arrived() <= std::chrono::steady_clock::now();
+        io.stop();
+      },
+      [&](const std::string&) { io.stop(); });
+  pair.sender->start([](proto::Message&&, std::size_t) {}, [](const std::string&) {});
+  proto::ProbeData probe;
+  probe.bytes = pattern(size, 3);
+  pair.sender->send(probe);
+  io.run_for(std::chrono::seconds(30));
+  EXPECT_TRUE(received == pattern(size, 3));
+  EXPECT_EQ(buffer, size + 64);
+  EXPECT_TRUE(ordered);
+}
+
 TEST(Connection, ABadPayloadAfterAGoodOneOfTheSameSizeIsStillCaught) {
   // The kept buffer holds the first message's bytes; the second's CRC must be checked against
   // its own bytes, so a corrupted copy of the same size is refused.
