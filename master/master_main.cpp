@@ -222,7 +222,7 @@ int run(int argc, char** argv) {
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
-  const bool temporal = o.multiple_frames && rtc::temporal_for(scene, o.temporal);
+  const bool temporal = o.multiple_frames && rtc::temporal_for(scene, o.temporal, o.first_frame, o.last_frame, o.loop_seconds > 0);
   // With temporal coherence the tile is the unit retraced: finer tiles retrace less.
   if (app.count("--tile") == 0 && temporal) o.tile_size = rtc::kTemporalTileSize;
   // Every frame open at once is held whole on the master (RGBA float and the EXR channels asked

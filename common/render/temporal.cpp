@@ -115,13 +115,59 @@ TemporalMode parse_temporal_mode(const std::string& text) {
   throw Error("temporal coherence mode must be auto, on or off, got \"" + text + "\"");
 }
 
-bool temporal_for(const Scene& scene, TemporalMode mode) {
-  if (mode != TemporalMode::Auto) return mode == TemporalMode::On;
+namespace {
+
+bool camera_moves(const Scene& scene, int first_frame, int last_frame) {
   const std::vector<CameraKey>& keys = scene.animation.camera;
-  for (std::size_t i = 1; i < keys.size(); ++i) {
-    if (!(keys[i].camera == keys[0].camera)) return false;
+  if (keys.size() < 2) return false;
+  // Between two points where it is the same the camera holds still (it interpolates linearly);
+  // a pose that differs by rounding only makes the tracker trace that frame whole.
+  const int first = std::max(first_frame, keys.front().frame);
+  const int last = std::min(last_frame, keys.back().frame);
+  if (first >= last) return false;  // the frames lie before the first key or after the last
+  const Camera at_first = camera_at(scene, first);
+  if (!(camera_at(scene, last) == at_first)) return true;
+  for (const CameraKey& k : keys) {
+    if (k.frame > first && k.frame < last && !(k.camera == at_first)) return true;
   }
-  return true;
+  return false;
+}
+
+/// Whether two or more of frames [first_frame, last_frame] lie between keys a and b (strictly
+/// increasing), where what they key differs.
+template <class Key, class Differ>
+bool moves_between_keys(const std::vector<Key>& keys, int first_frame, int last_frame, Differ differ) {
+  for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
+    if (std::max(keys[i].frame, first_frame) < std::min(keys[i + 1].frame, last_frame) && differ(keys[i], keys[i + 1])) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+bool anything_moves(const Scene& scene, int first_frame, int last_frame) {
+  if (camera_moves(scene, first_frame, last_frame)) return true;
+  for (const MeshTrack& t : scene.animation.meshes) {
+    if (moves_between_keys(t.keys, first_frame, last_frame,
+                           [](const TransformKey& a, const TransformKey& b) { return differs(a.transform, b.transform); })) {
+      return true;
+    }
+  }
+  for (const LightTrack& t : scene.animation.lights) {
+    if (moves_between_keys(t.keys, first_frame, last_frame,
+                           [](const LightKey& a, const LightKey& b) { return !(a.position == b.position); })) {
+      return true;
+    }
+  }
+  return false;
+}
+
+bool temporal_for(const Scene& scene, TemporalMode mode, int first_frame, int last_frame, bool loop) {
+  if (mode != TemporalMode::Auto) return mode == TemporalMode::On;
+  if (camera_moves(scene, first_frame, last_frame)) return false;
+  return !loop || anything_moves(scene, first_frame, last_frame);
 }
 
 void check_mark_grid(const MarkGrid& grid, const std::string& what) {
@@ -141,13 +187,19 @@ void check_mark_grid(const MarkGrid& grid, const std::string& what) {
   }
 }
 
-MarkGrid mark_grid_for(const Scene& scene, int cells) {
+MarkGrid mark_grid_for(const Scene& scene, int cells, int first_frame, int last_frame) {
   cells = std::clamp(cells, 1, kMaxMarkCellsPerAxis);
+  // The key pairs whose motion the frames see: two or more of the frames lie in [a, b] (keys
+  // are strictly increasing), where the poses stay inside the pair's span; a frame before the
+  // first key or after the last holds that key's pose.
+  const auto seen = [&](const TransformKey& a, const TransformKey& b) {
+    return std::max(a.frame, first_frame) < std::min(b.frame, last_frame) && differs(a.transform, b.transform);
+  };
   DBox region;
   for (const MeshTrack& track : scene.animation.meshes) {
     if (track.mesh >= scene.meshes.size() || track.keys.size() < 2) continue;
     bool moves = false;
-    for (std::size_t i = 1; i < track.keys.size(); ++i) moves |= differs(track.keys[i].transform, track.keys[0].transform);
+    for (std::size_t i = 0; i + 1 < track.keys.size(); ++i) moves |= seen(track.keys[i], track.keys[i + 1]);
     if (!moves) continue;
     const DBox obj = object_bounds(scene.meshes[track.mesh]);
     if (obj.empty()) continue;
@@ -155,6 +207,7 @@ MarkGrid mark_grid_for(const Scene& scene, int cells) {
     for (std::size_t i = 0; i + 1 < track.keys.size(); ++i) {
       const TransformKey& a = track.keys[i];
       const TransformKey& b = track.keys[i + 1];
+      if (!seen(a, b)) continue;  // still, or outside the frames: its poses are another pair's ends
       const glm::mat4 ma = a.transform.matrix(), mb = b.transform.matrix();
       DBox span = transformed(obj.lo, obj.hi, ma);
       span.extend(transformed(obj.lo, obj.hi, mb));
@@ -180,9 +233,14 @@ MarkGrid mark_grid_for(const Scene& scene, int cells) {
   grid.lo = region.lo - glm::dvec3(pad);
   grid.hi = region.hi + glm::dvec3(pad);
   const glm::dvec3 size = grid.hi - grid.lo;
-  const double cell = std::max({size.x, size.y, size.z}) / cells;
-  for (int k = 0; k < 3; ++k) grid.dims[k] = std::clamp(static_cast<int>(std::ceil(size[k] / cell - 1e-9)), 1, cells);
-  return grid;
+  // Fewer cells along the longest axis while the grid would hold too many voxels (a cubic
+  // region passes kMaxMarkVoxels above 128 cells a side).
+  for (;;) {
+    const double cell = std::max({size.x, size.y, size.z}) / cells;
+    for (int k = 0; k < 3; ++k) grid.dims[k] = std::clamp(static_cast<int>(std::ceil(size[k] / cell - 1e-9)), 1, cells);
+    if (grid.voxel_count() <= kMaxMarkVoxels || cells == 1) return grid;
+    --cells;
+  }
 }
 
 // ---- recorder -------------------------------------------------------------------------------

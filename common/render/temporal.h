@@ -17,6 +17,7 @@
 // rtc-render locally). Pure functions of the scene, so master and workers agree.
 #pragma once
 
+#include <climits>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -28,13 +29,22 @@
 
 namespace rtc {
 
-/// Whether to use temporal coherence: Auto = on unless the camera moves (a camera track with
-/// keys that differ: every frame would be traced whole anyway, the marks would be wasted work).
+/// Whether to use temporal coherence: Auto = on unless the camera moves over the frames
+/// rendered (every frame would be traced whole anyway, the marks would be wasted work).
 enum class TemporalMode : std::uint8_t { Auto, On, Off };
 /// "auto", "on", "off"; parse_temporal_mode throws rtc::Error naming the value.
 [[nodiscard]] const char* temporal_mode_name(TemporalMode mode);
 [[nodiscard]] TemporalMode parse_temporal_mode(const std::string& text);
-[[nodiscard]] bool temporal_for(const Scene& scene, TemporalMode mode);
+/// Frames [first_frame, last_frame] are rendered (the defaults: every frame of the animation).
+/// Auto is on when the camera is the same at first_frame, last_frame and every camera key
+/// between them; a camera that moves only outside those frames does not count.
+/// With `loop` (rtc-master --loop, a frame-rate run), Auto is also off when nothing at all
+/// moves over the frames: every frame after the first would cost nothing, and the rate said
+/// nothing (41,002 frames a second of a still scene).
+[[nodiscard]] bool temporal_for(const Scene& scene, TemporalMode mode, int first_frame = INT_MIN,
+                                int last_frame = INT_MAX, bool loop = false);
+/// Whether the camera, a mesh or a light moves over frames [first_frame, last_frame].
+[[nodiscard]] bool anything_moves(const Scene& scene, int first_frame, int last_frame);
 
 /// A voxel grid over [lo, hi] with dims cells per axis; empty (dims 0) when no mesh moves.
 struct MarkGrid {
@@ -65,10 +75,14 @@ inline constexpr std::uint32_t kMaxMarkVoxels = 1u << 21;
 /// [1, kMaxMarkCellsPerAxis] and at most kMaxMarkVoxels voxels.
 void check_mark_grid(const MarkGrid& grid, const std::string& what);
 
-/// The region the scene's moving meshes can occupy over the whole animation (every frame,
-/// including the held poses before the first key and after the last), padded, split into
-/// about `cells` voxels along its longest axis. Empty when no mesh moves.
-[[nodiscard]] MarkGrid mark_grid_for(const Scene& scene, int cells = kDefaultMarkCells);
+/// The region the scene's moving meshes can occupy over frames [first_frame, last_frame]
+/// (the defaults: the whole animation, held poses before the first key and after the last
+/// included), padded, split into about `cells` voxels along its longest axis, fewer where that
+/// would make more than kMaxMarkVoxels voxels. Empty when no mesh moves over those frames. Keys
+/// outside the frames do not widen it (a key at frame 1000 far away made every voxel of a
+/// 10-frame run 25 units wide); a mesh that leaves it anyway makes its frame traced whole.
+[[nodiscard]] MarkGrid mark_grid_for(const Scene& scene, int cells = kDefaultMarkCells, int first_frame = INT_MIN,
+                                     int last_frame = INT_MAX);
 
 /// What the rays of one tile crossed: voxel indices (x + dims.x * (y + dims.y * z)), sorted
 /// and unique.

@@ -20,12 +20,12 @@ int tiles_along(int pixels, int tile_size) {
 
 }  // namespace
 
-TemporalFrames::TemporalFrames(const Renderer& renderer, int tile_size, int cells)
+TemporalFrames::TemporalFrames(const Renderer& renderer, int tile_size, int cells, int first_frame, int last_frame)
     : renderer_(&renderer),
       tile_size_(tile_size),
       tiles_x_(tiles_along(renderer.scene().width, tile_size)),
       tiles_y_(tiles_along(renderer.scene().height, tile_size)),
-      tracker_(renderer.scene(), mark_grid_for(renderer.scene(), cells),
+      tracker_(renderer.scene(), mark_grid_for(renderer.scene(), cells, first_frame, last_frame),
                static_cast<std::uint32_t>(tiles_x_) * static_cast<std::uint32_t>(tiles_y_)) {}
 
 const Image& TemporalFrames::render(const FrameState& state, Report* report, ProgressBar* progress) {

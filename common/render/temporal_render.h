@@ -16,7 +16,9 @@ class ProgressBar;
 class TemporalFrames {
  public:
   /// `renderer` must outlive this. Tiles are tile_size squares in row-major order.
-  TemporalFrames(const Renderer& renderer, int tile_size, int cells = kDefaultMarkCells);
+  /// Frames [first_frame, last_frame] are rendered (the mark grid covers what moves in them).
+  TemporalFrames(const Renderer& renderer, int tile_size, int cells = kDefaultMarkCells, int first_frame = INT_MIN,
+                 int last_frame = INT_MAX);
 
   struct Report {
     TemporalPlan plan;  ///< `dirty` left empty

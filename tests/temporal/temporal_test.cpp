@@ -172,6 +172,85 @@ TEST(MarkGrid, CoversEveryPoseOfTheMovingMeshes) {
   EXPECT_TRUE(mark_grid_for(still).empty());
 }
 
+// Only the frames rendered count: a key far outside them does not widen the grid, and the
+// grid still holds every pose of those frames; a range where nothing moves needs no grid.
+TEST(MarkGrid, CoversTheFramesRenderedNotKeysOutsideThem) {
+  const Scene scene = default_scene();
+  const int begin = scene.animation.frame_begin, end = scene.animation.frame_end;
+  Scene far = scene;
+  ASSERT_FALSE(far.animation.meshes.empty());
+  MeshTrack& track = far.animation.meshes[0];
+  ASSERT_GE(track.keys.size(), 2u);
+  TransformKey away = track.keys.back();
+  ASSERT_LT(away.frame, end + 1000);
+  away.frame = end + 1000;
+  away.transform.translate += glm::vec3(600.0f, 0.0f, 0.0f);
+  track.keys.push_back(away);
+  const MarkGrid whole = mark_grid_for(far);  // the whole animation: out to x + 600
+  const MarkGrid rendered = mark_grid_for(far, kDefaultMarkCells, begin, end);
+  EXPECT_GT(whole.hi.x - whole.lo.x, 500.0);
+  EXPECT_LT(rendered.hi.x - rendered.lo.x, 100.0);
+  for (int f = begin; f <= end; ++f) {
+    const FramePose pose = pose_at(far, f);
+    for (const MeshTrack& t : far.animation.meshes) {
+      const glm::dmat4 world(pose.world_from_object[t.mesh]);
+      for (const glm::vec3& p : far.meshes[t.mesh].positions) {
+        ASSERT_TRUE(inside(rendered, glm::dvec3(world * glm::dvec4(glm::dvec3(p), 1.0))))
+            << "frame " << f << ": vertex of mesh " << t.mesh << " outside the grid";
+      }
+    }
+  }
+  // Frames after the last of the scene's own keys but before the far one do see it move.
+  EXPECT_GT(mark_grid_for(far, kDefaultMarkCells, end + 10, end + 20).hi.x, rendered.hi.x + 5.0);
+  // One frame, or frames where every track holds a key's pose, need none.
+  EXPECT_TRUE(mark_grid_for(scene, kDefaultMarkCells, begin, begin).empty());
+  EXPECT_TRUE(mark_grid_for(scene, kDefaultMarkCells, end + 5, end + 50).empty());
+}
+
+// --mark-cells takes up to 256, but a cubic region has 2^21 voxels at 128 a side: the grid
+// gets fewer cells rather than failing the check (it used to throw "mark grid has 2146689 voxels").
+TEST(MarkGrid, ManyCellsOnACubicRegionStayWithinTheVoxelLimit) {
+  Scene scene = default_scene();
+  MeshTrack& track = scene.animation.meshes.at(0);
+  track.keys = {track.keys.front(), track.keys.front()};
+  track.keys[1].frame = track.keys[0].frame + 10;
+  track.keys[1].transform.translate += glm::vec3(4.0f, 4.0f, 4.0f);  // a diagonal: about a cube
+  for (const int cells : {128, 129, 200, kMaxMarkCellsPerAxis}) {
+    const MarkGrid g = mark_grid_for(scene, cells);
+    EXPECT_NO_THROW(check_mark_grid(g, "test")) << cells << " cells";
+    EXPECT_LE(g.voxel_count(), kMaxMarkVoxels) << cells << " cells";
+    EXPECT_GE(std::max({g.dims.x, g.dims.y, g.dims.z}), 120) << cells << " cells";
+  }
+}
+
+// Auto: on unless the camera moves over the frames rendered.
+TEST(TemporalMode, AutoLooksAtTheFramesRenderedOnly) {
+  Scene scene = default_scene();
+  scene.animation.camera = {CameraKey{0, scene.camera}, CameraKey{5, scene.camera}, CameraKey{6, scene.camera}};
+  scene.animation.camera[0].camera.eye += glm::vec3(0.5f, 0, 0);  // moves over frames 0-5, then holds
+  EXPECT_FALSE(temporal_for(scene, TemporalMode::Auto));
+  EXPECT_FALSE(temporal_for(scene, TemporalMode::Auto, 0, 19));
+  EXPECT_FALSE(temporal_for(scene, TemporalMode::Auto, 4, 5));
+  EXPECT_TRUE(temporal_for(scene, TemporalMode::Auto, 5, 19));
+  EXPECT_TRUE(temporal_for(scene, TemporalMode::Auto, 8, 19));
+  EXPECT_TRUE(temporal_for(scene, TemporalMode::On, 0, 19));
+  EXPECT_FALSE(temporal_for(scene, TemporalMode::Off, 8, 19));
+  // A key inside the frames that differs, though both ends agree.
+  scene.animation.camera[0].camera = scene.camera;
+  scene.animation.camera[1].camera.eye += glm::vec3(0.5f, 0, 0);
+  EXPECT_FALSE(temporal_for(scene, TemporalMode::Auto, 0, 10));
+  EXPECT_TRUE(temporal_for(scene, TemporalMode::Auto, 6, 10));
+  // --loop (a frame-rate run) over frames where nothing at all moves: off, else as without it.
+  Scene still = default_scene();
+  EXPECT_TRUE(temporal_for(still, TemporalMode::Auto, still.animation.frame_begin, still.animation.frame_end, true));
+  still.animation.meshes.clear();
+  still.animation.lights.clear();
+  EXPECT_FALSE(anything_moves(still, still.animation.frame_begin, still.animation.frame_end));
+  EXPECT_FALSE(temporal_for(still, TemporalMode::Auto, still.animation.frame_begin, still.animation.frame_end, true));
+  EXPECT_TRUE(temporal_for(still, TemporalMode::Auto, still.animation.frame_begin, still.animation.frame_end, false));
+  EXPECT_TRUE(temporal_for(still, TemporalMode::On, still.animation.frame_begin, still.animation.frame_end, true));
+}
+
 // A retraced tile's old marks are replaced (Jevans 3.3.1), by a difference walk over the two
 // ascending lists: the tracker ends in the state a fresh one given the new marks has, and
 // lists that are not ascending (a peer's) take the slow path to the same state.
