@@ -133,27 +133,30 @@ bool camera_moves(const Scene& scene, int first_frame, int last_frame) {
   return false;
 }
 
-/// Whether two or more of frames [first_frame, last_frame] lie between keys a and b (strictly
-/// increasing), where what they key differs.
+/// Whether frames [first_frame, last_frame] see keys a and b (strictly increasing) change what
+/// they key: two or more of them lie between the keys, and the keys differ. A frame before the
+/// first key or after the last holds that key.
+template <class Key, class Differ>
+bool seen_between(const Key& a, const Key& b, int first_frame, int last_frame, Differ differ) {
+  return std::max(a.frame, first_frame) < std::min(b.frame, last_frame) && differ(a, b);
+}
+
 template <class Key, class Differ>
 bool moves_between_keys(const std::vector<Key>& keys, int first_frame, int last_frame, Differ differ) {
   for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
-    if (std::max(keys[i].frame, first_frame) < std::min(keys[i + 1].frame, last_frame) && differ(keys[i], keys[i + 1])) {
-      return true;
-    }
+    if (seen_between(keys[i], keys[i + 1], first_frame, last_frame, differ)) return true;
   }
   return false;
 }
+
+bool transforms_differ(const TransformKey& a, const TransformKey& b) { return differs(a.transform, b.transform); }
 
 }  // namespace
 
 bool anything_moves(const Scene& scene, int first_frame, int last_frame) {
   if (camera_moves(scene, first_frame, last_frame)) return true;
   for (const MeshTrack& t : scene.animation.meshes) {
-    if (moves_between_keys(t.keys, first_frame, last_frame,
-                           [](const TransformKey& a, const TransformKey& b) { return differs(a.transform, b.transform); })) {
-      return true;
-    }
+    if (moves_between_keys(t.keys, first_frame, last_frame, transforms_differ)) return true;
   }
   for (const LightTrack& t : scene.animation.lights) {
     if (moves_between_keys(t.keys, first_frame, last_frame,
@@ -189,25 +192,20 @@ void check_mark_grid(const MarkGrid& grid, const std::string& what) {
 
 MarkGrid mark_grid_for(const Scene& scene, int cells, int first_frame, int last_frame) {
   cells = std::clamp(cells, 1, kMaxMarkCellsPerAxis);
-  // The key pairs whose motion the frames see: two or more of the frames lie in [a, b] (keys
-  // are strictly increasing), where the poses stay inside the pair's span; a frame before the
-  // first key or after the last holds that key's pose.
-  const auto seen = [&](const TransformKey& a, const TransformKey& b) {
-    return std::max(a.frame, first_frame) < std::min(b.frame, last_frame) && differs(a.transform, b.transform);
-  };
+  // Only the key pairs whose motion the frames see count; between them the poses stay inside
+  // the pair's span.
   DBox region;
   for (const MeshTrack& track : scene.animation.meshes) {
     if (track.mesh >= scene.meshes.size() || track.keys.size() < 2) continue;
-    bool moves = false;
-    for (std::size_t i = 0; i + 1 < track.keys.size(); ++i) moves |= seen(track.keys[i], track.keys[i + 1]);
-    if (!moves) continue;
+    if (!moves_between_keys(track.keys, first_frame, last_frame, transforms_differ)) continue;
     const DBox obj = object_bounds(scene.meshes[track.mesh]);
     if (obj.empty()) continue;
     const double rho = object_radius(scene.meshes[track.mesh]);
     for (std::size_t i = 0; i + 1 < track.keys.size(); ++i) {
       const TransformKey& a = track.keys[i];
       const TransformKey& b = track.keys[i + 1];
-      if (!seen(a, b)) continue;  // still, or outside the frames: its poses are another pair's ends
+      // Still, or outside the frames: its poses are another pair's ends.
+      if (!seen_between(a, b, first_frame, last_frame, transforms_differ)) continue;
       const glm::mat4 ma = a.transform.matrix(), mb = b.transform.matrix();
       DBox span = transformed(obj.lo, obj.hi, ma);
       span.extend(transformed(obj.lo, obj.hi, mb));
