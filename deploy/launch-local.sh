@@ -6,7 +6,8 @@
 # Usage: ./deploy/launch-local.sh [N] [SCENE] [-- extra rtc-master args]
 #   N      workers (default: the machine's core count); each gets cores/N threads (at least 1);
 #          a first argument that is not a number is the SCENE
-#   SCENE  scene file (default: the built-in scene, its whole animation)
+#   SCENE  scene file, or a folder holding view.json (default: the built-in scene, its whole
+#          animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
 #          (--token-file F is passed on to the workers too, --tls-cert C makes them trust C, and
 #          --tls-server-name NAME, the workers' alone, is the name C carries if not 127.0.0.1)
@@ -52,10 +53,12 @@ for a in "$@"; do
 done
 workers="$(nproc)"
 scene=()
+# A scene: a file, or a folder holding view.json (a scene pack, e.g. ../shared/scenes/bunny).
+is_scene() { [ -f "$1" ] || { [ -d "$1" ] && [ -f "$1/view.json" ]; }; }
 # A scene without N: the first argument names a file and is not a number.
 if [ $# -gt 0 ] && [ "$1" != "--" ] && ! [[ "$1" =~ ^[0-9]+$ ]]; then
-  if [ ! -f "$1" ]; then
-    echo "launch-local: \"$1\" is neither a number of workers nor a scene file (usage: launch-local.sh [N] [SCENE] [-- rtc-master args])" >&2
+  if ! is_scene "$1"; then
+    echo "launch-local: \"$1\" is neither a number of workers nor a scene file or folder with a view.json (usage: launch-local.sh [N] [SCENE] [-- rtc-master args])" >&2
     exit 2
   fi
   scene=("$1")
@@ -77,7 +80,14 @@ if [ ${#scene[@]} -eq 0 ] && [ $# -gt 0 ] && [ "$1" != "--" ]; then
   shift
 fi
 if [ ${#scene[@]} -eq 0 ] && [ $# -gt 0 ] && [ "$1" != "--" ]; then
-  [ -f "$1" ] || { echo "launch-local: scene file $1 does not exist" >&2; exit 2; }
+  if ! is_scene "$1"; then
+    if [ -d "$1" ]; then
+      echo "launch-local: scene folder $1 has no view.json" >&2
+    else
+      echo "launch-local: scene file $1 does not exist" >&2
+    fi
+    exit 2
+  fi
   scene=("$1")
   shift
 fi

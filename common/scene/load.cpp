@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <string>
 
@@ -130,6 +131,15 @@ void set_resolution(Scene& scene, int width, int height) {
 }
 
 Scene load_scene(const std::filesystem::path& path) {
+  // A scene pack's folder (../shared/scenes/NAME) stands for the view.json inside it.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    const std::filesystem::path view = path / "view.json";
+    if (!std::filesystem::exists(view, ec)) {
+      throw Error(path.string() + ": is a folder without a view.json; give a scene or mesh file");
+    }
+    return load_scene_json(view);
+  }
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });

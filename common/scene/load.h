@@ -11,7 +11,8 @@ namespace rtc {
 /// Loads a scene file. `.json` is the scene format (see docs/scene-format.md); `.obj`, `.ply`,
 /// `.gltf`, `.glb`, `.nff` (also `.nff.gz`/`.nff.xz` are rejected with a hint) are bare meshes
 /// framed by an automatic camera and lit by a default light (NFF brings its own view and
-/// lights). Throws rtc::Error naming the file, line or field and the reason.
+/// lights). A folder stands for the view.json inside it (a scene pack). Throws rtc::Error naming
+/// the file, line or field and the reason.
 [[nodiscard]] Scene load_scene(const std::filesystem::path& path);
 
 /// The procedural scene compiled into the program: a floor, reflective and diffuse objects,

@@ -30,7 +30,8 @@ inline std::string scene_label(const SceneCliOptions& o) { return scene_label(o.
 /// Registers SCENE and --width --height --spp --max-depth --min-weight --intersector on `app`.
 inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
   app.add_option("scene", o.scene_path,
-                 "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff); "
+                 "scene file (.json scene or view.json, .obj, .ply, .gltf/.glb, .nff) or a folder holding "
+                 "view.json; "
                  "omitted: the built-in default scene");
   app.add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 32768));
   app.add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 32768));

@@ -541,7 +541,6 @@ int run(int argc, char** argv) {
   }
 
   std::filesystem::path path(scene_path);
-  if (!scene_path.empty() && std::filesystem::is_directory(path)) path /= "view.json";
   auto load = [&] {
     rtc::Scene sc = scene_path.empty() ? rtc::default_scene() : rtc::load_scene(path);
     if (width > 0 || height > 0) rtc::set_resolution(sc, width > 0 ? width : sc.width, height > 0 ? height : sc.height);

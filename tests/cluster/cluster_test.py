@@ -2182,6 +2182,23 @@ def case_launch_local(c):
         fail(f"rtc-render with a named scene: exit {r.returncode}, out/ holds {sorted(os.listdir(os.path.join(c.tmp, 'out')))}:\n"
              f"{r.stdout}{r.stderr}")
     print("a named scene's frames: out/cluster/lab__2_take_3_0000.png (launch-local), out/lab__2_take_3.png (rtc-render)")
+    # A scene pack's folder stands for its view.json (launch-local, rtc-master and rtc-render),
+    # named by the folder; one without a view.json is refused by the script with the reason.
+    pack = c.mkdir("pack/spd-lab")
+    with open(os.path.join(pack, "view.json"), "w", encoding="utf-8") as f:
+        json.dump({"mesh": cube, "resolution": [32, 24]}, f)
+    rc, log = _run_launcher(c, "launch-folder", ["--frames", "0"], False, scene=pack, workers="1")
+    written = sorted(os.listdir(cluster_out)) if os.path.isdir(cluster_out) else []
+    if rc != 0 or "spd-lab_0000.png" not in written:
+        fail(f"launch-local.sh with a scene folder: exit {rc}, files {written}, expected spd-lab_0000.png:\n{log}")
+    r = subprocess.run([os.path.abspath(c.args.render), pack], cwd=c.tmp, capture_output=True, text=True, timeout=90)
+    if r.returncode != 0 or not os.path.isfile(os.path.join(c.tmp, "out", "spd-lab.png")):
+        fail(f"rtc-render with a scene folder: exit {r.returncode}:\n{r.stdout}{r.stderr}")
+    r = _launcher_refusal(c, ["1", os.path.dirname(pack), "--", "--frames", "0"])
+    if r.returncode != 2 or "has no view.json" not in r.stderr or "master on" in r.stdout:
+        fail(f"launch-local.sh with a folder without view.json: exit {r.returncode}, expected 2:\n{r.stdout}{r.stderr}")
+    print("a scene folder: out/cluster/spd-lab_0000.png (launch-local), out/spd-lab.png (rtc-render); "
+          "a folder without view.json refused")
 
 
 def case_launch_local_failures(c):

@@ -254,6 +254,27 @@ TEST(SceneJson, NameDefaultsToTheFileOrAViewJsonsFolder) {
   EXPECT_EQ(load_scene("view.json").name, "spd-lab");
 }
 
+// A scene pack's folder stands for its view.json (as rtc-bench always took it); a folder
+// without one is refused, naming the folder.
+TEST(SceneJson, AFolderStandsForItsViewJson) {
+  TempDir dir;
+  (void)dir.write("pack/spd-lab/tri.obj", kTriangle);
+  (void)dir.write("pack/spd-lab/view.json", R"({"mesh": "tri.obj", "resolution": [33, 17]})");
+  const Scene scene = load_scene(dir.path() / "pack" / "spd-lab");
+  EXPECT_EQ(scene.name, "spd-lab");
+  EXPECT_EQ(scene.triangle_count(), 1u);
+  EXPECT_EQ(scene.width, 33);
+  EXPECT_EQ(scene.height, 17);
+  const std::filesystem::path empty = dir.path() / "pack";
+  try {
+    (void)load_scene(empty);
+    ADD_FAILURE() << "a folder without view.json loaded";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(empty.string() + ": is a folder without a view.json"), std::string::npos) << what;
+  }
+}
+
 TEST(SceneJson, TriangleCountMismatchIsOnlyAWarning) {
   JsonCase c;
   EXPECT_EQ(load_scene(c.write(R"({"mesh": "tri.obj", "triangles": 12345})")).triangle_count(), 1u);
