@@ -190,6 +190,13 @@ std::string format_summary(const RunSummary& s) {
   out += "; share";
   for (const auto& [name, share] : s.worker_share) out += fmt::format(" {}:{:.1f}%", name, 100.0 * share);
   if (s.duplicate_tiles > 0) out += fmt::format("; {} duplicate tiles dropped", s.duplicate_tiles);
+  if (s.writing) {
+    out += fmt::format("; {} frame{} written", s.frames_written, s.frames_written == 1 ? "" : "s");
+    if (s.frames_written > 0) out += fmt::format(" ({:.0f} ms each to encode and write)", 1e3 * s.write_s / s.frames_written);
+    if (s.writer_held_s >= 0.05) {
+      out += fmt::format(", new frames waited {:.2f} s for the writer (writing was the bottleneck then)", s.writer_held_s);
+    }
+  }
   if (s.frames > 0 && s.tiles > 0) {
     out += fmt::format("; master CPU {:.2f} s, network thread {:.3f} s ({:.2f} ms/frame, {:.1f} us/tile)", s.process_cpu_s,
                        s.io_cpu_s, 1e3 * s.io_cpu_s / s.frames, 1e6 * s.io_cpu_s / static_cast<double>(s.tiles));
@@ -221,6 +228,11 @@ std::string summary_json(const RunSummary& s) {
   j["tiles"] = s.tiles;
   j["master_io_cpu_s"] = s.io_cpu_s;
   j["master_process_cpu_s"] = s.process_cpu_s;
+  if (s.writing) {
+    j["frames_written"] = s.frames_written;
+    j["write_s"] = s.write_s;
+    j["writer_held_s"] = s.writer_held_s;
+  }
   return j.dump();
 }
 

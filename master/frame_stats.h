@@ -83,6 +83,13 @@ struct RunSummary {
   /// decoding, reassembly, bookkeeping), and the whole process (adds the frame writer's
   /// encoding). Filled by the master after summarize().
   double io_cpu_s = 0, process_cpu_s = 0;
+  /// The frame writer (--out, --out-dir), filled by the master: frames on disk, the wall time its
+  /// thread spent encoding and writing them, and how long new frames waited for it (it holds
+  /// FrameWriter::kMaxPending frames; while they are all taken, no frame opens: writing was the
+  /// bottleneck for that time). `writing` is false when no frame was to be written (--no-out).
+  bool writing = false;
+  std::uint32_t frames_written = 0;
+  double write_s = 0, writer_held_s = 0;
 };
 /// The run's figures, frame by frame, kept small: a --loop run of hours at hundreds of frames a
 /// second must not keep every FrameStats (half a kilobyte each with its strings and map). 16

@@ -43,6 +43,11 @@ std::string FrameWriter::first_error() const {
   return first_error_;
 }
 
+FrameWriter::Totals FrameWriter::totals() const {
+  std::lock_guard lock(mutex_);
+  return totals_;
+}
+
 void FrameWriter::loop() {
   std::unique_lock lock(mutex_);
   for (;;) {
@@ -53,15 +58,19 @@ void FrameWriter::loop() {
     busy_ = true;
     lock.unlock();
     std::string error;
+    const auto started = std::chrono::steady_clock::now();
     try {
       write_image(path, image, options_);
     } catch (const std::exception& e) {
       error = e.what();
     }
+    const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     if (pool_ != nullptr) pool_->give(std::move(image));
     if (!error.empty() && on_error_) on_error_(error);
     lock.lock();
     if (!error.empty() && first_error_.empty()) first_error_ = error;
+    ++(error.empty() ? totals_.written : totals_.failed);
+    totals_.write_s += took_s;
     busy_ = false;
     if (queue_.empty()) idle_.notify_all();
   }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -38,6 +39,13 @@ class FrameWriter {
   /// The first failure ("path: reason"), empty when every write succeeded.
   [[nodiscard]] std::string first_error() const;
 
+  struct Totals {
+    std::size_t written = 0;  ///< frames on disk
+    std::size_t failed = 0;
+    double write_s = 0;  ///< wall time spent encoding and writing them (the writer's thread)
+  };
+  [[nodiscard]] Totals totals() const;
+
  private:
   void loop();
 
@@ -49,6 +57,7 @@ class FrameWriter {
   std::deque<std::pair<std::string, Image>> queue_;
   bool busy_ = false;
   std::string first_error_;
+  Totals totals_;
   bool stop_ = false;
   std::thread thread_;
 };

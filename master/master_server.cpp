@@ -223,11 +223,28 @@ class Master {
     io_.run();
     if (writer_) {
       // The last frames' writes, the late-signal handler still listening (arm_late_signal): a
-      // first signal must not kill the master before they are on disk.
+      // first signal must not kill the master before they are on disk. A large frame takes
+      // seconds to encode: say what is left, every 5 s.
+      const Clock::time_point flush_start = Clock::now();
+      const std::size_t left_at_start = writer_->pending();
+      if (left_at_start > 0) {
+        spdlog::info("writing the last {} frame{} to disk", left_at_start, left_at_start == 1 ? "" : "s");
+      }
+      Clock::time_point last_note = flush_start;
       while (!writer_->flush_for(std::chrono::milliseconds(100))) {
         io_.restart();
         io_.poll();
+        if (const Clock::time_point now = Clock::now(); ms_between(last_note, now) >= 5000) {
+          last_note = now;
+          spdlog::info("still writing: {} of the last {} frames left after {:.0f} s", writer_->pending(), left_at_start,
+                       ms_between(flush_start, now) / 1e3);
+        }
       }
+      if (left_at_start > 0) {
+        spdlog::info("the last {} frame{} written in {:.2f} s", left_at_start, left_at_start == 1 ? "" : "s",
+                     ms_between(flush_start, Clock::now()) / 1e3);
+      }
+      note_writer_hold(Clock::now(), false);
       io_.restart();
       io_.poll();  // a signal in the last wait is noted too
       // A write that failed after the loop stopped (the last frames) must still fail the run.
@@ -249,6 +266,13 @@ class Master {
       summary.frames_planned = static_cast<std::uint32_t>(options_.last_frame - options_.first_frame + 1);
     }
     summary.stopped = stop_reason_;
+    if (writer_) {
+      const FrameWriter::Totals written = writer_->totals();
+      summary.writing = true;
+      summary.frames_written = static_cast<std::uint32_t>(written.written);
+      summary.write_s = written.write_s;
+      summary.writer_held_s = writer_held_s_;
+    }
     if (run_started_) {
       summary.io_cpu_s = cpu_seconds(CLOCK_THREAD_CPUTIME_ID) - io_cpu_at_start_;  // this is the io thread
       summary.process_cpu_s = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID) - process_cpu_at_start_;
@@ -836,6 +860,21 @@ class Master {
     }
   }
 
+  /// A long frame says how far it is every 10 s (after the last frame line or progress line):
+  /// the oldest open frame's tiles done, and the time since it opened.
+  void log_frame_progress(Clock::time_point now) {
+    if (!run_started_ || queue_.frames_open() == 0 || ms_between(last_progress_log_, now) < 10000) return;
+    last_progress_log_ = now;
+    const int sequence = queue_.open_frames().front();
+    const auto it = frames_.find(static_cast<std::uint32_t>(sequence));
+    if (it == frames_.end()) return;
+    const std::uint32_t done = queue_.tiles_done(sequence);
+    const std::uint32_t total = queue_.tiles_per_frame();
+    spdlog::info("frame {} [seq {}]: {} of {} tiles done ({:.0f}%) after {:.0f} s; {} worker{} ready", it->second.frame,
+                 sequence, done, total, 100.0 * done / total, ms_between(it->second.started_at, now) / 1e3,
+                 ready_workers(), ready_workers() == 1 ? "" : "s");
+  }
+
   void maybe_start() {
     if (run_started_ || ready_workers() < static_cast<std::size_t>(options_.min_workers)) return;
     run_started_ = true;
@@ -843,6 +882,7 @@ class Master {
     io_cpu_at_start_ = cpu_seconds(CLOCK_THREAD_CPUTIME_ID);
     process_cpu_at_start_ = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID);
     last_complete_ = run_start_;
+    last_progress_log_ = run_start_;
     const std::string frames = options_.first_frame == options_.last_frame
                                    ? "frame " + std::to_string(options_.first_frame)
                                    : "frames " + std::to_string(options_.first_frame) + "-" + std::to_string(options_.last_frame);
@@ -873,6 +913,16 @@ class Master {
       return !run_started_ || std::chrono::duration<double>(Clock::now() - run_start_).count() < options_.loop_seconds;
     }
     return next_frame_ <= options_.last_frame;
+  }
+
+  /// Times how long the frame writer keeps frames from opening (all kMaxPending of its places
+  /// taken while a frame could otherwise open), for the summary.
+  void note_writer_hold(Clock::time_point now, bool held) {
+    if (held && !writer_held_since_) writer_held_since_ = now;
+    if (!held && writer_held_since_) {
+      writer_held_s_ += ms_between(*writer_held_since_, now) / 1e3;
+      writer_held_since_.reset();
+    }
   }
 
   void open_frames() {
@@ -922,6 +972,11 @@ class Master {
       }
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
+    }
+    if (writer_) {
+      note_writer_hold(Clock::now(), run_started_ && more_frames() &&
+                                         queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) &&
+                                         writer_->pending() >= FrameWriter::kMaxPending);
     }
   }
 
@@ -1028,6 +1083,7 @@ class Master {
       // would also hold the link probe and the other workers' start.
       f.stats.interval_ms = finished_.frames() == 0 ? f.stats.wall_ms : ms_between(last_complete_, now);
       last_complete_ = now;
+      last_progress_log_ = now;
       f.stats.link_bytes_per_s = link_bytes_per_s_;
       f.stats.link_line_mbit_per_s = link_source_ == "given" ? options_.link_mbps : 0.0;
       f.stats.link_source = link_bytes_per_s_ > 0 ? link_source_ : "unknown";
@@ -1110,6 +1166,7 @@ class Master {
       }
     }
     log_waiting(now);
+    log_frame_progress(now);
     // The tail of a frame may need re-issuing although no message arrived.
     if (run_started_) {
       finish_frames();
@@ -1258,7 +1315,9 @@ class Master {
   double tile_latency_ms_ = 0;
 
   bool run_started_ = false;
-  Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_;
+  Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_, last_progress_log_;
+  std::optional<Clock::time_point> writer_held_since_;  // see note_writer_hold
+  double writer_held_s_ = 0;
   std::string stop_reason_;  ///< why the run ended before its last frame; empty when it did not
   std::uint64_t heartbeat_seq_ = 0;
   double link_bytes_per_s_ = 0;

@@ -179,6 +179,11 @@ std::size_t TileQueue::waiting() const {
   return n;
 }
 
+std::uint32_t TileQueue::tiles_done(int frame) const {
+  const auto it = frames_.find(frame);
+  return it == frames_.end() ? 0 : it->second.done;
+}
+
 bool TileQueue::frame_done(int frame) const {
   const auto it = frames_.find(frame);
   return it != frames_.end() && it->second.done == order_.size();

@@ -85,6 +85,8 @@ class TileQueue {
   [[nodiscard]] std::size_t waiting() const;  ///< tiles nobody holds yet, over all open frames
 
   [[nodiscard]] bool frame_done(int frame) const;
+  /// Tiles of an open frame done (traced or kept); 0 for a frame not open.
+  [[nodiscard]] std::uint32_t tiles_done(int frame) const;
   /// Whether tile `tile` of open frame `frame` is done (true for a frame no longer open).
   [[nodiscard]] bool tile_done(int frame, std::uint32_t tile) const;
   /// Removes the oldest open frame when all its tiles are done and returns its number.

@@ -2117,6 +2117,13 @@ def case_launch_local(c):
     if rc != 0:
         fail(f"launch-local.sh exited {rc}:\n{log}")
     c.expect_frames_equal(out, "m", ref, range(0, 4), "png")
+    # The summary counts the frames on disk; frames still queued for the writer when the last
+    # is rendered are announced and their end logged.
+    if not re.search(r"summary: 4 frames in .*; 4 frames written \(\d+ ms each to encode and write\)", log):
+        fail(f"the summary does not say 4 frames were written:\n{log}")
+    m = re.search(r"writing the last (\d) frames? to disk", log)
+    if m and not re.search(rf"the last {m.group(1)} frames? written in [0-9.]+ s", log):
+        fail(f"the master said it was writing the last frames but not that it had:\n{log}")
     out2 = c.mkdir("interrupted")
     rc, log = _run_launcher(c, "launch-int", [*MEDIUM, "--frames", "0-23", "--out", os.path.join(out2, "m_####.png")], True)
     if rc != 0:

@@ -79,6 +79,11 @@ TEST(FrameWriter, WrittenAndFailedFramesGiveTheirImagesBack) {
     writer.submit((dir / "no_such_folder" / "b.png").string(), Image(8, 8));  // fails
     ASSERT_TRUE(writer.flush_for(std::chrono::seconds(30)));
     EXPECT_EQ(pool.kept(), 2u);
+    // The summary's "N frames written": the one on disk, not the one that failed.
+    const FrameWriter::Totals totals = writer.totals();
+    EXPECT_EQ(totals.written, 1u);
+    EXPECT_EQ(totals.failed, 1u);
+    EXPECT_GT(totals.write_s, 0.0);
   }
   EXPECT_TRUE(std::filesystem::exists(dir / "a.png"));
   ASSERT_EQ(errors.size(), 1u);

@@ -206,6 +206,31 @@ TEST(FrameStats, SummarySaysARunWasStopped) {
   EXPECT_EQ(format_summary(none), "summary: no frame finished of the 24 asked for (stopped by SIGTERM)");
 }
 
+// The frame writer's part of the summary: frames on disk, the time each took, and how long new
+// frames waited for the writer (only when they did; only when frames were to be written).
+TEST(FrameStats, SummarySaysWhatTheWriterDid) {
+  FrameStats f;
+  f.wire_bytes = 1000;
+  f.interval_ms = 10;
+  RunSummary r = summarize({f, f, f, f}, 0.04);
+  EXPECT_EQ(format_summary(r).find("written"), std::string::npos) << format_summary(r);
+  EXPECT_EQ(summary_json(r).find("frames_written"), std::string::npos) << summary_json(r);
+  r.writing = true;
+  r.frames_written = 4;
+  r.write_s = 0.5;
+  EXPECT_NE(format_summary(r).find("; 4 frames written (125 ms each to encode and write)"), std::string::npos)
+      << format_summary(r);
+  EXPECT_EQ(format_summary(r).find("waited"), std::string::npos) << format_summary(r);
+  r.writer_held_s = 1.25;
+  EXPECT_NE(format_summary(r).find("(125 ms each to encode and write), new frames waited 1.25 s for the writer"),
+            std::string::npos)
+      << format_summary(r);
+  EXPECT_NE(summary_json(r).find("\"frames_written\":4"), std::string::npos) << summary_json(r);
+  EXPECT_NE(summary_json(r).find("\"writer_held_s\":1.25"), std::string::npos) << summary_json(r);
+  r.frames_written = 0;  // every write failed
+  EXPECT_NE(format_summary(r).find("; 0 frames written, new frames waited"), std::string::npos) << format_summary(r);
+}
+
 TEST(FrameStats, GivenLineRateCarriesTcpPayloadOnly) {
   // 1448 payload bytes per 1538-byte Ethernet frame: Fast Ethernet carries 94.1 Mbit/s of TCP.
   EXPECT_NEAR(link_payload_bytes_per_s(100) * 8 / 1e6, 94.148, 1e-3);
