@@ -256,6 +256,11 @@ int run(int argc, char** argv) {
   for (int f = frames.first; f <= frames.last; ++f) {
     rtc::Timer frame_timer;
     const double cpu_start = rtc::process_cpu_ms();
+    if (f == frames.first) {
+      // The first prepare builds the kd-tree of the whole scene: seconds for millions of
+      // triangles, with nothing on the screen otherwise.
+      spdlog::info("frame {}: building the kd-tree of {} triangles", f, renderer.scene().triangle_count());
+    }
     const std::shared_ptr<const rtc::FrameState> state = renderer.prepare(f);
     if (f == frames.first) {
       const rtc::RenderOptions& o = renderer.options();
@@ -290,7 +295,10 @@ int run(int argc, char** argv) {
       } else {
         temporal_note = fmt::format(" | {}/{} tiles retraced ({}; {} voxels changed; crossed by rays {}, by shadow rays {})",
                                     p.dirty_count, report.tiles, p.why, p.changed_voxels, p.by_path, p.by_shadow);
-        if (last_full_ms > 0) {
+        if (p.dirty_count == 0 && last_full_ms > 0) {
+          // Nothing traced: a ratio would only measure the bookkeeping ("499.7x faster").
+          temporal_note += fmt::format(", nothing traced (the last full frame took {:.0f} ms)", last_full_ms);
+        } else if (last_full_ms > 0) {
           temporal_note += fmt::format(", {:.1f}x faster than the last full frame", last_full_ms / std::max(render_ms, 1e-3));
         }
       }

@@ -62,6 +62,7 @@ inline void add_kd_clip_option(CLI::App& app, std::string& text) {
 /// Throws rtc::Error naming the file for a bad scene.
 inline Scene load_scene_from_cli(const SceneCliOptions& o) {
   Timer load_timer;
+  if (!o.scene_path.empty()) spdlog::info("loading scene {}", o.scene_path);  // a large one takes seconds
   Scene scene = o.scene_path.empty() ? default_scene() : load_scene(o.scene_path);
   if (o.width > 0 || o.height > 0) {
     set_resolution(scene, o.width > 0 ? o.width : scene.width, o.height > 0 ? o.height : scene.height);

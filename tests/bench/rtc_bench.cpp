@@ -714,8 +714,10 @@ int run(int argc, char** argv) {
                   tile_share.from, tile_share.to);
     }
     if (compare) {
-      std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality); rtc / high quality %.2fx "
-                  "(paired by round)\n",
+      // The ratio is not rtc's median over Embree's: each round times the three builds back to
+      // back, and the median of the rounds' own ratios moves far less with a slow spell.
+      std::printf("  build: embree BVH %.1f ms (medium quality), %.1f ms (high quality); rtc's time over the high "
+                  "quality one %.2fx (the median of the rounds' ratios, each round timing both back to back)\n",
                   embree_build_ms, embree_build_hq_ms, build_vs_embree_hq);
     }
   }
