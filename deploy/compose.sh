@@ -109,6 +109,9 @@ for id in $("${compose[@]}" "${globals[@]}" ps -a -q master 2>/dev/null || true)
   name="${name#/}"
   if ! stopped "$state"; then
     echo "compose: the master ($name) is $state" >&2
+  elif [ -n "$signalled" ] && { [ "$code" = 130 ] || [ "$code" = 143 ]; }; then
+    # Compose stopped it (SIGTERM): a run cut short, not a failure.
+    echo "compose: the master ($name) stopped before the run's end (status $code); the frames it finished are in $frames_dir"
   elif [ "$code" != 0 ]; then
     echo "compose: the master ($name) exited with status $code; the end of its log:" >&2
     log_tail "$id"

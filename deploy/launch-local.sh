@@ -25,8 +25,9 @@
 # A worker that fails (exits non-zero before the master) is reported with the end of its log, one
 # stopped from outside is named; when fewer workers are left than --min-workers the master is
 # stopped (it finishes the frames in flight; with no worker left, it abandons them after its
-# --drain-seconds). Exit status: the master's, or 1 when a worker failed or the master had to be
-# stopped for want of workers; the logs are kept then.
+# --drain-seconds). Exit status: the master's (130 or 143 when a Ctrl-C or SIGTERM cut the run
+# short), or 1 when a worker failed or the master had to be stopped for want of workers; the logs
+# are kept then.
 set -euo pipefail
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -245,6 +246,9 @@ cleanup() {
     kill -KILL "$pid" 2>/dev/null || true
     wait "$pid" 2>/dev/null || true
   done
+  # The script's own stop (workers missing) reaches the master as a SIGTERM, which it reports as
+  # a run cut short (143): the status says why instead.
+  if [ "$stopped_for_workers" = 1 ] && [ -z "$user_signal" ] && [ "$status" -eq 143 ]; then status=0; fi
   if [ "$status" -eq 0 ] && [ "$workers_failed" -gt 0 ]; then
     echo "launch-local: $workers_failed worker$([ "$workers_failed" = 1 ] || echo s) failed" >&2
     status=1
@@ -252,7 +256,13 @@ cleanup() {
     echo "launch-local: the run was stopped for want of workers" >&2
     status=1
   fi
-  if [ "$status" -ne 0 ] && [ "$workers_started" = 1 ]; then
+  # A run the user stopped, with nothing failed, keeps no logs.
+  local stopped_by_user=0
+  if [ -n "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ] &&
+    { [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; }; then
+    stopped_by_user=1
+  fi
+  if [ "$status" -ne 0 ] && [ "$workers_started" = 1 ] && [ "$stopped_by_user" = 0 ]; then
     echo "launch-local: worker logs kept in $run_dir" >&2
   else
     rm -rf "$run_dir"
@@ -260,6 +270,7 @@ cleanup() {
   exit "$status"
 }
 stopped_for_workers=0
+user_signal=""  # the first SIGINT or SIGTERM the script got (INT, TERM)
 trap cleanup EXIT
 # The master and the workers run in sessions of their own, so a signal to this script's process
 # group (Ctrl-C, `kill %1`, `timeout`, a supervisor) reaches only the script, which passes each
@@ -279,6 +290,7 @@ signal_master() {
 }
 forward() {
   interrupted=1
+  [ -n "$user_signal" ] || user_signal="$1"
   if [ "$signals" -eq 0 ]; then
     echo "launch-local: SIG$1: stopping (the master finishes the frames in flight; signal again to abandon them)" >&2
   else
@@ -362,5 +374,9 @@ while :; do
   fi
   worker_exited "$done_pid" "$rc" || judge_workers
 done
-[ "$status" -eq 0 ] || echo "launch-local: rtc-master exited with status $status" >&2
+if [ -n "$user_signal" ] && { [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; }; then
+  echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
+elif [ "$status" -ne 0 ] && ! { [ "$stopped_for_workers" = 1 ] && [ "$status" -eq 143 ]; }; then
+  echo "launch-local: rtc-master exited with status $status" >&2
+fi
 exit "$status"

@@ -287,6 +287,14 @@ class Master {
       if (!stats_file_ && fatal_error_.empty()) fatal_error_ = "--stats-json " + options_.stats_json + ": write failed";
     }
     if (!fatal_error_.empty()) throw Error(fatal_error_);
+    // A run a signal cut short exits 128 + the signal's number, as a shell expects of an
+    // interrupted program, so that `rtc-master ... && next-step` does not take it for a whole
+    // run; the frames it finished are written all the same. A signal that came once every frame
+    // was rendered (or during the goodbyes) leaves the run whole: 0.
+    if (stop_signal_ != 0 && cut_short()) {
+      spdlog::info("exit status {} (128 + {}): the run was cut short", 128 + stop_signal_, signal_name(stop_signal_));
+      return 128 + stop_signal_;
+    }
     return 0;
   }
 
@@ -1197,6 +1205,12 @@ class Master {
   void on_signal(const asio::error_code& ec, int signal) {
     if (ec || done_) return;
     const std::string name = signal_name(signal);
+    if (stop_signal_ == 0) {
+      stop_signal_ = signal;
+      // --loop: frames would still have come (a --frames run compares the frames finished with
+      // those asked for at the end).
+      signal_left_frames_ = more_frames();
+    }
     if (stopping_ || queue_.frames_open() == 0) {
       if (queue_.frames_open() > 0) spdlog::warn("{} again: abandoning the frames in flight", name);
       abandon_open_frames();
@@ -1229,7 +1243,17 @@ class Master {
     });
   }
 
+  /// Whether the run ended before all it was asked for: frames of a --frames range not
+  /// rendered, or a --loop stopped before its time or with frames abandoned.
+  [[nodiscard]] bool cut_short() const {
+    if (options_.loop_seconds <= 0) {
+      return finished_.frames() < static_cast<std::uint64_t>(options_.last_frame - options_.first_frame) + 1;
+    }
+    return signal_left_frames_ || frames_abandoned_;
+  }
+
   void abandon_open_frames() {
+    frames_abandoned_ = frames_abandoned_ || !queue_.open_frames().empty();
     for (const int sequence : queue_.open_frames()) {
       const auto it = frames_.find(static_cast<std::uint32_t>(sequence));
       if (it != frames_.end()) {
@@ -1318,6 +1342,9 @@ class Master {
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_, last_progress_log_;
   std::optional<Clock::time_point> writer_held_since_;  // see note_writer_hold
   double writer_held_s_ = 0;
+  int stop_signal_ = 0;               ///< the first SIGINT or SIGTERM, 0 if none came
+  bool signal_left_frames_ = false;   ///< more frames would have come when it did
+  bool frames_abandoned_ = false;     ///< open frames were dropped unfinished
   std::string stop_reason_;  ///< why the run ended before its last frame; empty when it did not
   std::uint64_t heartbeat_seq_ = 0;
   double link_bytes_per_s_ = 0;

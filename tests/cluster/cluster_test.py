@@ -832,7 +832,9 @@ def interrupted_run(c, tag, scene, twice):
                        watch=[master])
     if twice:
         master.send(signal.SIGINT)
-    expect_exit(master, 0, 60, "exit 0 after SIGINT")
+    # Cut short: 128 + SIGINT, as a shell expects (it was 0, which a script took for a whole run).
+    expect_exit(master, 130, 60, "exit 130 after SIGINT cut the run short")
+    expect_log(master, r"exit status 130 \(128 \+ SIGINT\): the run was cut short", "the exit status explained", timeout=1)
     expect_log(master, r"shutting down: ", "its shutdown", timeout=1)
     for w in workers:
         expect_exit(w, 0, 15, "exit 0 after the master's Goodbye")
@@ -949,7 +951,7 @@ def case_worker_stalled(c):
         fail("the stalled worker was named more than once")
     stuck.close()
     master.send(signal.SIGINT)
-    expect_exit(master, 0, 60, "finish the frames in flight after SIGINT")
+    expect_exit(master, 130, 60, "finish the frames in flight after SIGINT (cut short: 128 + SIGINT)")
     expect_exit(keeper, 0, 15, "exit 0 after the master's Goodbye")
 
 
@@ -1006,7 +1008,8 @@ def case_non_loopback_needs_token(c):
     master, addr, _ = c.start_master("master-token", [*SMALL, "--token-file", token], listen="0.0.0.0:0")
     print(f"with a token: listening on {addr}")
     master.send(signal.SIGTERM)
-    expect_exit(master, 0, 15, "exit 0 on SIGTERM")
+    # Stopped before any frame: the run was cut short, 128 + SIGTERM.
+    expect_exit(master, 143, 15, "exit 143 on SIGTERM before its frames")
 
 
 def case_worker_gives_up(c):
@@ -1175,7 +1178,8 @@ def case_big_message_before_auth(c):
     if master.poll() is not None:
         fail(f"the master exited: {describe_rc(master.poll())}")
     master.send(signal.SIGTERM)
-    expect_exit(master, 0, 15, "exit 0 on SIGTERM")
+    # Stopped before any frame: the run was cut short, 128 + SIGTERM.
+    expect_exit(master, 143, 15, "exit 143 on SIGTERM before its frames")
 
 
 def case_connection_limits(c):
@@ -1788,7 +1792,7 @@ def case_faults(c):
     if not master.alive():
         fail("the master ended before every fault was tried")
     master.send(signal.SIGINT)
-    expect_exit(master, 0, 60, "finish the frames in flight after SIGINT despite the faults")
+    expect_exit(master, 130, 60, "finish the frames in flight after SIGINT despite the faults (cut short: 128 + SIGINT)")
     expect_exit(good, 0, 15, "exit 0 after the master's Goodbye")
     records, _ = expect_loop_frames_equal(stats, ref_hash)
     print(f"{len(records)} frames, every one equal to rtc-render's")
@@ -2109,8 +2113,9 @@ def _expect_none_abandoned(log, what):
 
 def case_launch_local(c):
     """deploy/launch-local.sh: 2 workers render frames identical to rtc-render's and nothing is
-    left behind; Ctrl-C (SIGINT to the process group) finishes the frames in flight, exits 0,
-    and again leaves nothing behind."""
+    left behind; Ctrl-C (SIGINT to the process group) finishes the frames in flight, exits 130
+    (128 + SIGINT: the run was cut short; it was 0, which a script took for a whole run), and
+    again leaves nothing behind, logs included."""
     ref = c.reference("ref", SMALL, "0-3", "png")
     out = c.mkdir("run")
     rc, log = _run_launcher(c, "launch", [*SMALL, "--frames", "0-3", "--out", os.path.join(out, "m_####.png")], False)
@@ -2126,8 +2131,10 @@ def case_launch_local(c):
         fail(f"the master said it was writing the last frames but not that it had:\n{log}")
     out2 = c.mkdir("interrupted")
     rc, log = _run_launcher(c, "launch-int", [*MEDIUM, "--frames", "0-23", "--out", os.path.join(out2, "m_####.png")], True)
-    if rc != 0:
-        fail(f"launch-local.sh exited {rc} after Ctrl-C, expected 0:\n{log}")
+    if rc != 130 or "launch-local: the run was cut short by SIGINT (rtc-master's status 130)" not in log:
+        fail(f"launch-local.sh exited {rc} after Ctrl-C, expected 130 and why:\n{log}")
+    if "worker logs kept" in log:
+        fail(f"launch-local.sh kept the worker logs of a run the user stopped:\n{log}")
     # With frames in flight the master finishes them ("taking no new frames"); a signal that
     # lands while no frame is open stops it at once ("stopped by SIGINT", master_server.cpp
     # on_signal). With temporal coherence a frame here takes a few ms, so either happens (the
@@ -2135,7 +2142,7 @@ def case_launch_local(c):
     if not re.search(r"SIGINT: taking no new frames|shutting down: stopped by SIGINT", log):
         fail(f"the master did not report stopping on SIGINT:\n{log}")
     written = _frames_written_midrun(out2, 24, "after Ctrl-C")
-    print(f"Ctrl-C after the first frame: {written} frames written, exit 0, nothing left behind")
+    print(f"Ctrl-C after the first frame: {written} frames written, exit 130, nothing left behind")
     # SIGTERM to the script alone is passed on to the master, which finishes the frames in flight
     # as for Ctrl-C (before, the script only printed that it was stopping and waited for the run).
     # A SIGTERM to the whole group (kill %1, timeout) reaches the master once, through the script
@@ -2145,11 +2152,11 @@ def case_launch_local(c):
         out_t = c.mkdir(f"terminated-{mode}")
         rc, log = _run_launcher(c, f"launch-{mode}", [*MEDIUM, "--frames", "0-47", "--temporal", "off", "--out",
                                                       os.path.join(out_t, "m_####.png")], mode)
-        if rc != 0 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
-            fail(f"launch-local.sh after SIGTERM ({mode}): exit {rc}, expected 0 and the master stopping on SIGTERM:\n{log}")
+        if rc != 143 or not re.search(r"SIGTERM: taking no new frames|shutting down: stopped by SIGTERM", log):
+            fail(f"launch-local.sh after SIGTERM ({mode}): exit {rc}, expected 143 and the master stopping on SIGTERM:\n{log}")
         _expect_none_abandoned(log, f"after SIGTERM ({mode})")
         written = _frames_written_midrun(out_t, 48, f"after SIGTERM ({mode})")
-        print(f"SIGTERM ({mode}) after the first frame: {written} frames written, exit 0, nothing left behind")
+        print(f"SIGTERM ({mode}) after the first frame: {written} frames written, exit 143, nothing left behind")
     # The master's listening address and ready file are the script's own: refused with a reason
     # before anything starts (the master used to fail on "--listen: At Most 1 required").
     for arg in ("--listen", "--ready-file=x"):
