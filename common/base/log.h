@@ -18,4 +18,9 @@ void init_logging(const std::string& level = "info");
 /// terminal's cursor. Other bytes (UTF-8 too) are kept.
 [[nodiscard]] std::string printable(std::string_view text);
 
+/// "1 mesh", "3 meshes": a count with the noun in its number, for log lines.
+[[nodiscard]] inline std::string counted(unsigned long long n, std::string_view one, std::string_view many) {
+  return std::to_string(n) + ' ' + std::string(n == 1 ? one : many);
+}
+
 }  // namespace rtc

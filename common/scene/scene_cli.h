@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/base/cli_checks.h"
+#include "common/base/log.h"
 #include "common/base/timer.h"
 #include "common/scene/load.h"
 
@@ -73,9 +74,9 @@ inline Scene load_scene_from_cli(const SceneCliOptions& o) {
   if (!o.intersector.empty()) {
     scene.settings.intersector = o.intersector == "watertight" ? Intersector::Watertight : Intersector::Wald;
   }
-  spdlog::info("scene {}: {} meshes, {} triangles, {} lights, {}x{}, loaded in {:.0f} ms",
-               scene_label(o), scene.meshes.size(), scene.triangle_count(),
-               scene.lights.size(), scene.width, scene.height, load_timer.elapsed_ms());
+  spdlog::info("scene {}: {}, {}, {}, {}x{}, loaded in {:.0f} ms", scene_label(o),
+               counted(scene.meshes.size(), "mesh", "meshes"), counted(scene.triangle_count(), "triangle", "triangles"),
+               counted(scene.lights.size(), "light", "lights"), scene.width, scene.height, load_timer.elapsed_ms());
   return scene;
 }
 

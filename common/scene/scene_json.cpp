@@ -396,9 +396,10 @@ class SceneJsonLoader {
     if (lights == nullptr && scene_.lights.empty()) place_default_light(scene_);
     if (const Json* v = r_.optional(root, "animation")) read_animation(*v);
 
-    spdlog::info("{}: {} mesh(es), {} triangles, {} materials, {} lights, frames {}..{}",
-                 path_.string(), scene_.meshes.size(), scene_.triangle_count(),
-                 scene_.materials.size(), scene_.lights.size(), scene_.animation.frame_begin,
+    spdlog::info("{}: {}, {}, {}, {}, frames {}..{}", path_.string(), counted(scene_.meshes.size(), "mesh", "meshes"),
+                 counted(scene_.triangle_count(), "triangle", "triangles"),
+                 counted(scene_.materials.size(), "material", "materials"),
+                 counted(scene_.lights.size(), "light", "lights"), scene_.animation.frame_begin,
                  scene_.animation.frame_end);
     return std::move(scene_);
   }
