@@ -25,9 +25,9 @@
 # A worker that fails (exits non-zero before the master) is reported with the end of its log, one
 # stopped from outside is named; when fewer workers are left than --min-workers the master is
 # stopped (it finishes the frames in flight; with no worker left, it abandons them after its
-# --drain-seconds). Exit status: the master's (130 or 143 when a Ctrl-C or SIGTERM cut the run
-# short), or 1 when a worker failed or the master had to be stopped for want of workers; the logs
-# are kept then.
+# --drain-seconds). Exit status: 1 when a worker failed or the master had to be stopped for want
+# of workers (a Ctrl-C after that too; the logs are kept then), else the master's: 130 or 143
+# when a Ctrl-C or SIGTERM cut the run short.
 set -euo pipefail
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -246,13 +246,14 @@ cleanup() {
     kill -KILL "$pid" 2>/dev/null || true
     wait "$pid" 2>/dev/null || true
   done
-  # The script's own stop (workers missing) reaches the master as a SIGTERM, which it reports as
-  # a run cut short (143): the status says why instead.
-  if [ "$stopped_for_workers" = 1 ] && [ -z "$user_signal" ] && [ "$status" -eq 143 ]; then status=0; fi
-  if [ "$status" -eq 0 ] && [ "$workers_failed" -gt 0 ]; then
+  # A master cut short by a signal (130, 143) after a worker failed, or stopped by the script
+  # for want of workers (a SIGTERM, then perhaps the user's Ctrl-C): the status says that (1).
+  local whole_or_signalled=0
+  if [ "$status" -eq 0 ] || [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; then whole_or_signalled=1; fi
+  if [ "$whole_or_signalled" = 1 ] && [ "$workers_failed" -gt 0 ]; then
     echo "launch-local: $workers_failed worker$([ "$workers_failed" = 1 ] || echo s) failed" >&2
     status=1
-  elif [ "$status" -eq 0 ] && [ "$stopped_for_workers" = 1 ]; then
+  elif [ "$whole_or_signalled" = 1 ] && [ "$stopped_for_workers" = 1 ]; then
     echo "launch-local: the run was stopped for want of workers" >&2
     status=1
   fi
@@ -374,9 +375,12 @@ while :; do
   fi
   worker_exited "$done_pid" "$rc" || judge_workers
 done
-if [ -n "$user_signal" ] && { [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; }; then
-  echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
-elif [ "$status" -ne 0 ] && ! { [ "$stopped_for_workers" = 1 ] && [ "$status" -eq 143 ]; }; then
+if [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; then
+  # (After a worker failed or the script stopped the master, cleanup says so, with status 1.)
+  if [ -n "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
+    echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
+  fi
+elif [ "$status" -ne 0 ]; then
   echo "launch-local: rtc-master exited with status $status" >&2
 fi
 exit "$status"

@@ -210,6 +210,7 @@ std::string summary_json(const RunSummary& s) {
   j["frames"] = s.frames;
   if (s.frames_planned > 0) j["frames_planned"] = s.frames_planned;
   j["stopped"] = s.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.stopped);
+  j["cut_short"] = s.cut_short;
   j["total_s"] = s.total_s;
   j["median_fps"] = s.median_fps;
   j["mean_fps"] = s.mean_fps;

@@ -64,6 +64,9 @@ struct RunSummary {
   std::uint32_t frames = 0;
   std::uint32_t frames_planned = 0;  ///< the frames asked for (0: a --loop run); filled by the master
   std::string stopped;               ///< why the run ended early ("stopped by SIGINT"); empty if it did not
+  /// A signal cut the run short (frames asked for not rendered, a --loop stopped before its
+  /// time): the master exits 128 + its number. False when the drain finished every frame.
+  bool cut_short = false;
   double total_s = 0;
   double median_fps = 0, mean_fps = 0;
   double median_bound_fps = 0;  ///< 0 when unknown

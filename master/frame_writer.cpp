@@ -69,8 +69,12 @@ void FrameWriter::loop() {
     if (!error.empty() && on_error_) on_error_(error);
     lock.lock();
     if (!error.empty() && first_error_.empty()) first_error_ = error;
-    ++(error.empty() ? totals_.written : totals_.failed);
-    totals_.write_s += took_s;
+    if (error.empty()) {
+      ++totals_.written;
+      totals_.write_s += took_s;
+    } else {
+      ++totals_.failed;
+    }
     busy_ = false;
     if (queue_.empty()) idle_.notify_all();
   }

@@ -42,7 +42,7 @@ class FrameWriter {
   struct Totals {
     std::size_t written = 0;  ///< frames on disk
     std::size_t failed = 0;
-    double write_s = 0;  ///< wall time spent encoding and writing them (the writer's thread)
+    double write_s = 0;  ///< wall time spent encoding and writing the frames on disk (the writer's thread)
   };
   [[nodiscard]] Totals totals() const;
 

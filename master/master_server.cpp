@@ -227,6 +227,7 @@ class Master {
       // seconds to encode: say what is left, every 5 s.
       const Clock::time_point flush_start = Clock::now();
       const std::size_t left_at_start = writer_->pending();
+      const std::size_t failed_before = writer_->totals().failed;
       if (left_at_start > 0) {
         spdlog::info("writing the last {} frame{} to disk", left_at_start, left_at_start == 1 ? "" : "s");
       }
@@ -240,11 +241,12 @@ class Master {
                        ms_between(flush_start, now) / 1e3);
         }
       }
-      if (left_at_start > 0) {
+      if (const std::size_t failed = writer_->totals().failed - failed_before; left_at_start > 0 && failed == 0) {
         spdlog::info("the last {} frame{} written in {:.2f} s", left_at_start, left_at_start == 1 ? "" : "s",
                      ms_between(flush_start, Clock::now()) / 1e3);
+      } else if (left_at_start > 0) {
+        spdlog::error("{} of the last {} frames could not be written (the first error is below)", failed, left_at_start);
       }
-      note_writer_hold(Clock::now(), false);
       io_.restart();
       io_.poll();  // a signal in the last wait is noted too
       // A write that failed after the loop stopped (the last frames) must still fail the run.
@@ -266,6 +268,7 @@ class Master {
       summary.frames_planned = static_cast<std::uint32_t>(options_.last_frame - options_.first_frame + 1);
     }
     summary.stopped = stop_reason_;
+    summary.cut_short = stop_signal_ != 0 && cut_short();
     if (writer_) {
       const FrameWriter::Totals written = writer_->totals();
       summary.writing = true;
@@ -291,7 +294,7 @@ class Master {
     // interrupted program, so that `rtc-master ... && next-step` does not take it for a whole
     // run; the frames it finished are written all the same. A signal that came once every frame
     // was rendered (or during the goodbyes) leaves the run whole: 0.
-    if (stop_signal_ != 0 && cut_short()) {
+    if (summary.cut_short) {
       spdlog::info("exit status {} (128 + {}): the run was cut short", 128 + stop_signal_, signal_name(stop_signal_));
       return 128 + stop_signal_;
     }
@@ -1275,6 +1278,7 @@ class Master {
     if (done_) return;
     done_ = true;
     if (stop_reason_.empty() && reason != "all frames done") stop_reason_ = reason;
+    note_writer_hold(Clock::now(), false);  // no frame opens from here: the final writes are no hold
     spdlog::info("shutting down: {}", reason);
     asio::error_code ec;
     acceptor_.close(ec);

@@ -868,8 +868,10 @@ def interrupted_run(c, tag, scene, twice):
         fail(f"{tag}: the summary ({summary}) does not count the {len(written)} frames written")
     # The summary says the run was stopped and how many frames it left out (it used to read like
     # a complete run's).
-    if summary.get("stopped") != "stopped by SIGINT" or summary.get("frames_planned") != 12:
-        fail(f"{tag}: the summary ({summary}) does not say the run was stopped by SIGINT with 12 frames planned")
+    if summary.get("stopped") != "stopped by SIGINT" or summary.get("frames_planned") != 12 or \
+            summary.get("cut_short") is not True:
+        fail(f"{tag}: the summary ({summary}) does not say the run was stopped by SIGINT and cut short with 12 frames "
+             "planned")
     expect_log(master, rf"summary: {len(written)} of 12 frames \(stopped by SIGINT: {12 - len(written)} not rendered\)",
                "the summary's frames not rendered", timeout=1)
     return written, out
@@ -886,6 +888,21 @@ def case_sigint_finishes_cleanly(c):
     ref = c.reference("ref", scene, f"0-{max(drained + abandoned)}", "png")
     c.expect_frames_equal(drained_out, "m", ref, drained, "png")
     c.expect_frames_equal(abandoned_out, "m", ref, abandoned, "png")
+    # A SIGINT while the last frames are in flight: the drain finishes them, so the run is whole:
+    # exit 0, and the summary says it was stopped but not cut short.
+    stats = c.path("last-stats.json")
+    master, addr, _ = c.start_master("last-master", [*scene, "--frames", "0-1", "--stats-json", stats])
+    worker = c.start_worker("last-w", addr, 2)
+    expect_log(master, r"rendering frames 0-1", "the run's start", timeout=60, watch=[master])
+    master.send(signal.SIGINT)
+    expect_exit(master, 0, 60, "exit 0 when the drain finished every frame")
+    expect_exit(worker, 0, 15, "exit 0 after the master's Goodbye")
+    frames, summary = read_stats(stats)
+    if len(frames) != 2 or summary is None or summary.get("cut_short") is not False:
+        fail(f"the SIGINT during the last frames: {len(frames)} frames, summary {summary}; expected 2 and cut_short false")
+    drained_last = "taking no new frames" in master.log()
+    print(f"SIGINT with the last 2 frames in flight: both finished, exit 0, cut_short false "
+          f"({'drained' if drained_last else 'they were done before the signal'})")
 
 
 def case_signal_while_writing(c):
@@ -2290,6 +2307,18 @@ def case_launch_local_failures(c):
         if not m or not os.path.isfile(os.path.join(m.group(1), "worker-1.log")):
             fail(f"launch-local.sh did not keep the worker logs:\n{log}")
         print(f"{tag}: exit 1 in {took:.1f} s, the worker and its log named, logs kept, nothing left behind")
+
+    # A worker that failed, then the user's Ctrl-C (the run going on with the other worker under
+    # --min-workers 1): the master is cut short (130), but the run had a failure: exit 1, logs kept.
+    with open(wrapper, "w", encoding="utf-8") as f:
+        f.write("#!/usr/bin/env bash\n"
+                'for a in "$@"; do [[ "$a" == local-1 ]] && { echo "pretend failure of $a: no GPU" >&2; exit 3; }; done\n'
+                f'exec {os.path.abspath(c.args.worker)} "$@"\n')
+    rc, log = _run_launcher(c, "launch-fail-then-int", [*MEDIUM, "--frames", "0-1999", "--temporal", "off", "--no-out",
+                                                        "--min-workers", "1"], True, env=env)
+    if rc != 1 or "launch-local: 1 worker failed" not in log or "worker logs kept in" not in log or "launch-local: the run was cut short" in log:
+        fail(f"launch-local.sh with local-1 failing, then Ctrl-C: exit {rc}, expected 1, the failure named, the logs kept:\n{log}")
+    print("a failed worker, then Ctrl-C: exit 1 (not the master's 130), logs kept")
 
     # A worker that dies mid-run (SIGKILL): named with its status, the master stopped with the
     # frames in flight finished, exit 1.

@@ -196,6 +196,9 @@ TEST(FrameStats, SummarySaysARunWasStopped) {
       << format_summary(r);
   EXPECT_NE(summary_json(r).find("\"stopped\":\"stopped by SIGINT\""), std::string::npos) << summary_json(r);
   EXPECT_NE(summary_json(r).find("\"frames_planned\":24"), std::string::npos) << summary_json(r);
+  EXPECT_NE(summary_json(r).find("\"cut_short\":false"), std::string::npos) << summary_json(r);  // the master sets it
+  r.cut_short = true;
+  EXPECT_NE(summary_json(r).find("\"cut_short\":true"), std::string::npos) << summary_json(r);
   r.stopped.clear();
   r.frames_planned = 3;
   EXPECT_EQ(format_summary(r).rfind("summary: 3 frames in 0.03 s", 0), 0u) << format_summary(r);
