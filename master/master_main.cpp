@@ -134,7 +134,7 @@ int run(int argc, char** argv) {
   if (!exr_compression) {
     throw rtc::Error("--exr-compression: expected " + rtc::exr_compression_names() + ", got \"" + exr_compression_text + "\"");
   }
-  o.temporal = rtc::parse_temporal_mode(temporal_text);
+  const rtc::TemporalMode temporal_mode = rtc::parse_temporal_mode(temporal_text);
   (void)rtc::net::parse_host_port(o.listen, "--listen");
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
   if (app.count("--out-dir") > 0 && out_dir.empty()) throw rtc::Error("--out-dir: the folder is empty");
@@ -222,7 +222,8 @@ int run(int argc, char** argv) {
   o.first_frame = frames.first;
   o.last_frame = frames.last;
   o.multiple_frames = frames.last > frames.first || o.loop_seconds > 0;
-  const bool temporal = o.multiple_frames && rtc::temporal_for(scene, o.temporal, o.first_frame, o.last_frame, o.loop_seconds > 0);
+  o.temporal = rtc::choose_temporal(scene, temporal_mode, o.first_frame, o.last_frame, o.loop_seconds > 0);
+  const bool temporal = o.temporal.on;
   // With temporal coherence the tile is the unit retraced: finer tiles retrace less.
   if (app.count("--tile") == 0 && temporal) o.tile_size = rtc::kTemporalTileSize;
   // Every frame open at once is held whole on the master (RGBA float and the EXR channels asked

@@ -181,9 +181,7 @@ class Master {
       link_source_ = "given";
     }
     next_frame_ = options_.first_frame;
-    nothing_moves_ = !anything_moves(scene, options_.first_frame, options_.last_frame);
-    const bool several = options_.last_frame > options_.first_frame || options_.loop_seconds > 0;
-    if (several && temporal_for(scene, options_.temporal, options_.first_frame, options_.last_frame, options_.loop_seconds > 0)) {
+    if (options_.temporal.on) {
       tracker_ = std::make_unique<TemporalTracker>(
           scene, mark_grid_for(scene, options_.mark_cells, options_.first_frame, options_.last_frame),
                                                    queue_.tiles_per_frame());
@@ -214,11 +212,7 @@ class Master {
                      g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z);
       }
     } else {
-      spdlog::info("temporal coherence off ({})",
-                   options_.temporal == TemporalMode::Off ? "--temporal off"
-                   : options_.last_frame == options_.first_frame && options_.loop_seconds <= 0 ? "one frame"
-                   : !nothing_moves_ ? "the camera moves over the frames rendered"
-                                     : "--loop over frames where nothing moves: each is traced whole, as a frame-rate run needs");
+      spdlog::info("temporal coherence off ({})", options_.temporal.why_off);
     }
     io_.run();
     if (writer_) {
@@ -1354,7 +1348,6 @@ class Master {
   double link_bytes_per_s_ = 0;
   std::string link_source_ = "unknown";
   bool probe_running_ = false;
-  bool nothing_moves_ = false;  // over the frames rendered: no camera, mesh or light moves
   bool stopping_ = false;
   bool done_ = false;
   bool ready_file_written_ = false;  // by listen(), to be removed when the master stops listening

@@ -50,14 +50,16 @@ struct MasterOptions {
   std::uint32_t probe_bytes = 4u << 20;  ///< link measurement size (0.34 s at 100 Mbit/s)
   /// Object-space temporal coherence: after a frame, hand out only the tiles whose rays
   /// crossed space that a moving mesh left or entered (or that a moved light shades), keep the
-  /// other tiles' pixels (common/render/temporal.h).
-  TemporalMode temporal = TemporalMode::Auto;
+  /// other tiles' pixels (common/render/temporal.h). Decided by rtc-master's main
+  /// (choose_temporal over the frames and --temporal), which also sizes the tiles by it.
+  TemporalChoice temporal;
   int mark_cells = kDefaultMarkCells;  ///< mark grid cells along its longest axis
 };
 
-/// Runs until every frame is written (exit 0), a signal stops it (exit 0 after the frames in
-/// flight finish or are abandoned), or a fatal error (listen failure, unwritable output: throws
-/// rtc::Error). Returns the process exit code.
+/// Runs until every frame is written (exit 0), a signal stops it (after the frames in flight
+/// finish or are abandoned and the finished ones are written: exit 128 + the signal's number
+/// when the run was cut short, else 0), or a fatal error (listen failure, unwritable output:
+/// throws rtc::Error). Returns the process exit code.
 int run_master(const Scene& scene, const MasterOptions& options);
 
 /// What of --listen can be checked before the scene loads: it resolves, it is a loopback

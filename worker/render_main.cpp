@@ -237,7 +237,8 @@ int run(int argc, char** argv) {
   const bool tty = isatty(STDERR_FILENO) != 0;
   std::unique_ptr<rtc::TemporalFrames> temporal;
   const rtc::TemporalMode temporal_mode = rtc::parse_temporal_mode(temporal_text);
-  if (rtc::temporal_for(renderer.scene(), temporal_mode, frames.first, frames.last) && multiple) {
+  const rtc::TemporalChoice temporal_choice = rtc::choose_temporal(renderer.scene(), temporal_mode, frames.first, frames.last);
+  if (temporal_choice.on) {
     if (app.count("--tile") == 0) tile = rtc::kTemporalTileSize;  // the unit retraced: finer is cheaper
     temporal = std::make_unique<rtc::TemporalFrames>(renderer, tile, mark_cells, frames.first, frames.last);
     const rtc::MarkGrid& g = temporal->grid();
@@ -249,7 +250,7 @@ int run(int argc, char** argv) {
                    g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z, tile);
     }
   } else if (multiple && temporal_mode == rtc::TemporalMode::Auto) {
-    spdlog::info("temporal coherence off (the camera moves over the frames rendered): every frame traced whole");
+    spdlog::info("temporal coherence off ({}): every frame traced whole", temporal_choice.why_off);
   }
   double last_full_ms = 0;
   rtc::Timer run_timer;

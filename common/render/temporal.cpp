@@ -173,6 +173,14 @@ bool temporal_for(const Scene& scene, TemporalMode mode, int first_frame, int la
   return !loop || anything_moves(scene, first_frame, last_frame);
 }
 
+TemporalChoice choose_temporal(const Scene& scene, TemporalMode mode, int first_frame, int last_frame, bool loop) {
+  if (mode == TemporalMode::Off) return {false, "--temporal off"};
+  if (last_frame <= first_frame && !loop) return {false, "one frame"};
+  if (temporal_for(scene, mode, first_frame, last_frame, loop)) return {true, {}};
+  if (camera_moves(scene, first_frame, last_frame)) return {false, "the camera moves over the frames rendered"};
+  return {false, "--loop over frames where nothing moves: each is traced whole, as a frame-rate run needs"};
+}
+
 void check_mark_grid(const MarkGrid& grid, const std::string& what) {
   if (grid.dims == glm::ivec3(0)) return;  // empty
   for (int k = 0; k < 3; ++k) {

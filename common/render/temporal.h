@@ -46,6 +46,17 @@ enum class TemporalMode : std::uint8_t { Auto, On, Off };
 /// Whether the camera, a mesh or a light moves over frames [first_frame, last_frame].
 [[nodiscard]] bool anything_moves(const Scene& scene, int first_frame, int last_frame);
 
+/// temporal_for for a run of frames [first_frame, last_frame] (or a --loop over them), with the
+/// reason when it is off, for the log: "--temporal off", "one frame", "the camera moves over the
+/// frames rendered", "--loop over frames where nothing moves: ...". Decided once per run and
+/// passed on, so that a program's tile size and its tracker cannot disagree.
+struct TemporalChoice {
+  bool on = false;
+  std::string why_off;  ///< empty when on
+};
+[[nodiscard]] TemporalChoice choose_temporal(const Scene& scene, TemporalMode mode, int first_frame, int last_frame,
+                                             bool loop = false);
+
 /// A voxel grid over [lo, hi] with dims cells per axis; empty (dims 0) when no mesh moves.
 struct MarkGrid {
   glm::dvec3 lo{0.0};

@@ -251,6 +251,32 @@ TEST(TemporalMode, AutoLooksAtTheFramesRenderedOnly) {
   EXPECT_TRUE(temporal_for(still, TemporalMode::On, still.animation.frame_begin, still.animation.frame_end, true));
 }
 
+// choose_temporal: temporal_for over a run, with the reason it is off that rtc-master and
+// rtc-render log (and one frame, which it needs none for, off whatever the mode).
+TEST(TemporalMode, ChoiceSaysWhyItIsOff) {
+  Scene scene = default_scene();
+  scene.animation.camera = {CameraKey{0, scene.camera}, CameraKey{5, scene.camera}};
+  scene.animation.camera[0].camera.eye += glm::vec3(0.5f, 0, 0);  // moves over frames 0-5
+  const auto choice = [&](const Scene& s, TemporalMode mode, int first, int last, bool loop) {
+    const TemporalChoice c = choose_temporal(s, mode, first, last, loop);
+    EXPECT_EQ(c.on, temporal_for(s, mode, first, last, loop) && (last > first || loop));
+    EXPECT_EQ(c.on, c.why_off.empty());
+    return c.why_off;
+  };
+  EXPECT_EQ(choice(scene, TemporalMode::Auto, 0, 9, false), "the camera moves over the frames rendered");
+  EXPECT_EQ(choice(scene, TemporalMode::Auto, 6, 9, false), "");
+  EXPECT_EQ(choice(scene, TemporalMode::On, 0, 9, false), "");
+  EXPECT_EQ(choice(scene, TemporalMode::Off, 6, 9, false), "--temporal off");
+  EXPECT_EQ(choice(scene, TemporalMode::On, 6, 6, false), "one frame");
+  // A --loop over one frame: the same frame again and again, nothing moves between them.
+  EXPECT_EQ(choice(scene, TemporalMode::Auto, 6, 6, true).rfind("--loop over frames where nothing moves", 0), 0u);
+  Scene still = default_scene();
+  still.animation.meshes.clear();
+  still.animation.lights.clear();
+  EXPECT_EQ(choice(still, TemporalMode::Auto, 0, 9, true).rfind("--loop over frames where nothing moves", 0), 0u);
+  EXPECT_EQ(choice(still, TemporalMode::Auto, 0, 9, false), "");
+}
+
 // A retraced tile's old marks are replaced (Jevans 3.3.1), by a difference walk over the two
 // ascending lists: the tracker ends in the state a fresh one given the new marks has, and
 // lists that are not ascending (a peer's) take the slow path to the same state.
