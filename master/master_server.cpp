@@ -1095,6 +1095,11 @@ class Master {
       if (f.stats.temporal && f.stats.tiles_traced == f.stats.tiles_total) {
         full_render_ms_ = f.stats.render_ms;
         full_wire_bytes_ = f.stats.wire_bytes;
+      } else if (f.stats.temporal && f.stats.full_render_ms <= 0) {
+        // Planned while the first frame was still out (frames in flight): frames finish in
+        // order, so the whole one it is compared with is known now.
+        f.stats.full_render_ms = full_render_ms_;
+        f.stats.full_wire_bytes = full_wire_bytes_;
       }
       for (auto& [id, w] : workers_) {
         if (w->state != Worker::State::Closed && w->announced.erase(sequence)) {
