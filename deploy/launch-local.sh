@@ -26,8 +26,8 @@
 # stopped from outside is named; when fewer workers are left than --min-workers the master is
 # stopped (it finishes the frames in flight; with no worker left, it abandons them after its
 # --drain-seconds). Exit status: 1 when a worker failed or the master had to be stopped for want
-# of workers (a Ctrl-C after that too; the logs are kept then), else the master's: 130 or 143
-# when a Ctrl-C or SIGTERM cut the run short.
+# of workers (a Ctrl-C after that too; the logs are kept then) unless the master itself failed,
+# else the master's: 130 or 143 when a Ctrl-C or SIGTERM cut the run short.
 set -euo pipefail
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -379,6 +379,8 @@ if [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; then
   # (After a worker failed or the script stopped the master, cleanup says so, with status 1.)
   if [ -n "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
     echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
+  elif [ -z "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
+    echo "launch-local: rtc-master exited with status $status (a signal from outside the script cut its run short)" >&2
   fi
 elif [ "$status" -ne 0 ]; then
   echo "launch-local: rtc-master exited with status $status" >&2

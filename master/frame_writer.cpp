@@ -45,7 +45,9 @@ std::string FrameWriter::first_error() const {
 
 FrameWriter::Totals FrameWriter::totals() const {
   std::lock_guard lock(mutex_);
-  return totals_;
+  Totals t = totals_;
+  t.pending = queue_.size() + (busy_ ? 1 : 0);
+  return t;
 }
 
 void FrameWriter::loop() {

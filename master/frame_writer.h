@@ -42,9 +42,10 @@ class FrameWriter {
   struct Totals {
     std::size_t written = 0;  ///< frames on disk
     std::size_t failed = 0;
+    std::size_t pending = 0;  ///< frames waiting or being written (as pending())
     double write_s = 0;  ///< wall time spent encoding and writing the frames on disk (the writer's thread)
   };
-  [[nodiscard]] Totals totals() const;
+  [[nodiscard]] Totals totals() const;  ///< read under one lock: the counts agree
 
  private:
   void loop();

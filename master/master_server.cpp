@@ -220,11 +220,9 @@ class Master {
       // first signal must not kill the master before they are on disk. A large frame takes
       // seconds to encode: say what is left, every 5 s.
       const Clock::time_point flush_start = Clock::now();
-      const std::size_t left_at_start = writer_->pending();
-      const std::size_t failed_before = writer_->totals().failed;
-      if (left_at_start > 0) {
-        spdlog::info("writing the last {} frame{} to disk", left_at_start, left_at_start == 1 ? "" : "s");
-      }
+      const FrameWriter::Totals at_start = writer_->totals();
+      const std::size_t left_at_start = at_start.pending;
+      if (left_at_start > 0) spdlog::info("writing the last {} to disk", counted(left_at_start, "frame", "frames"));
       Clock::time_point last_note = flush_start;
       while (!writer_->flush_for(std::chrono::milliseconds(100))) {
         io_.restart();
@@ -235,11 +233,13 @@ class Master {
                        ms_between(flush_start, now) / 1e3);
         }
       }
-      if (const std::size_t failed = writer_->totals().failed - failed_before; left_at_start > 0 && failed == 0) {
-        spdlog::info("the last {} frame{} written in {:.2f} s", left_at_start, left_at_start == 1 ? "" : "s",
+      // (Every write has ended here: the counts are final.)
+      if (const std::size_t failed = writer_->totals().failed - at_start.failed; left_at_start > 0 && failed == 0) {
+        spdlog::info("the last {} written in {:.2f} s", counted(left_at_start, "frame", "frames"),
                      ms_between(flush_start, Clock::now()) / 1e3);
       } else if (left_at_start > 0) {
-        spdlog::error("{} of the last {} frames could not be written (the first error is below)", failed, left_at_start);
+        spdlog::error("{} of the last {} could not be written (the first error is below)", failed,
+                      counted(left_at_start, "frame", "frames"));
       }
       io_.restart();
       io_.poll();  // a signal in the last wait is noted too

@@ -13,7 +13,7 @@ inline void add_temporal_options(CLI::App& app, std::string& mode, int& cells) {
   app.add_option("--temporal", mode,
                  "temporal coherence: after the first frame trace only the tiles whose rays crossed space a moving "
                  "mesh left or entered, or that a moved light shades (same pixels): auto (on unless the camera "
-                 "moves over the frames rendered), on, off")
+                 "moves over the frames rendered; rtc-master: off for a --loop where nothing moves), on, off")
       ->check(CLI::IsMember({"auto", "on", "off"}))
       ->capture_default_str();
   app.add_option("--mark-cells", cells,
