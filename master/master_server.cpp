@@ -182,6 +182,7 @@ class Master {
     }
     next_frame_ = options_.first_frame;
     if (options_.temporal.on) {
+      nothing_moves_ = !anything_moves(scene, options_.first_frame, options_.last_frame);
       tracker_ = std::make_unique<TemporalTracker>(
           scene, mark_grid_for(scene, options_.mark_cells, options_.first_frame, options_.last_frame),
                                                    queue_.tiles_per_frame());
@@ -204,7 +205,9 @@ class Master {
                  compression_name(options_.compression));
     if (tracker_) {
       const MarkGrid& g = tracker_->grid();
-      if (g.empty()) {
+      if (g.empty() && nothing_moves_) {
+        spdlog::info("temporal coherence on: nothing moves over the frames; after the first frame nothing is traced");
+      } else if (g.empty()) {
         spdlog::info("temporal coherence on: no mesh moves; after the first frame only tiles shaded by a moved light are traced");
       } else {
         spdlog::info("temporal coherence on: after the first frame only tiles whose rays crossed space a moving mesh left or "
@@ -1345,6 +1348,7 @@ class Master {
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_, last_progress_log_;
   std::optional<Clock::time_point> writer_held_since_;  // see note_writer_hold
   double writer_held_s_ = 0;
+  bool nothing_moves_ = false;  // with temporal coherence: no camera, mesh or light moves over the frames (a log line)
   int stop_signal_ = 0;               ///< the first SIGINT or SIGTERM, 0 if none came
   bool signal_left_frames_ = false;   ///< more frames would have come when it did
   bool frames_abandoned_ = false;     ///< open frames were dropped unfinished
