@@ -377,10 +377,12 @@ while :; do
 done
 if [ "$status" -eq 130 ] || [ "$status" -eq 143 ]; then
   # (After a worker failed or the script stopped the master, cleanup says so, with status 1.)
-  if [ -n "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
-    echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
-  elif [ -z "$user_signal" ] && [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
-    echo "launch-local: rtc-master exited with status $status (a signal from outside the script cut its run short)" >&2
+  if [ "$workers_failed" = 0 ] && [ "$stopped_for_workers" = 0 ]; then
+    if [ -n "$user_signal" ]; then
+      echo "launch-local: the run was cut short by SIG$user_signal (rtc-master's status $status)" >&2
+    else
+      echo "launch-local: rtc-master exited with status $status (a signal from outside the script cut its run short)" >&2
+    fi
   fi
 elif [ "$status" -ne 0 ]; then
   echo "launch-local: rtc-master exited with status $status" >&2

@@ -6,6 +6,8 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "common/base/log.h"
+
 namespace rtc {
 
 namespace {
@@ -191,7 +193,7 @@ std::string format_summary(const RunSummary& s) {
   for (const auto& [name, share] : s.worker_share) out += fmt::format(" {}:{:.1f}%", name, 100.0 * share);
   if (s.duplicate_tiles > 0) out += fmt::format("; {} duplicate tiles dropped", s.duplicate_tiles);
   if (s.writing) {
-    out += fmt::format("; {} frame{} written", s.frames_written, s.frames_written == 1 ? "" : "s");
+    out += fmt::format("; {} written", counted(s.frames_written, "frame", "frames"));
     if (s.frames_written > 0) out += fmt::format(" ({:.0f} ms each to encode and write)", 1e3 * s.write_s / s.frames_written);
     if (s.writer_held_s >= 0.05) {
       out += fmt::format(", new frames waited {:.2f} s for the writer (writing was the bottleneck then)", s.writer_held_s);

@@ -28,10 +28,7 @@ void FrameWriter::submit(std::string path, Image image) {
   wake_.notify_all();
 }
 
-std::size_t FrameWriter::pending() const {
-  std::lock_guard lock(mutex_);
-  return queue_.size() + (busy_ ? 1 : 0);
-}
+std::size_t FrameWriter::pending() const { return totals().pending; }
 
 bool FrameWriter::flush_for(std::chrono::milliseconds limit) {
   std::unique_lock lock(mutex_);

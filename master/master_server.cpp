@@ -182,7 +182,6 @@ class Master {
     }
     next_frame_ = options_.first_frame;
     if (options_.temporal.on) {
-      nothing_moves_ = !anything_moves(scene, options_.first_frame, options_.last_frame);
       tracker_ = std::make_unique<TemporalTracker>(
           scene, mark_grid_for(scene, options_.mark_cells, options_.first_frame, options_.last_frame),
                                                    queue_.tiles_per_frame());
@@ -205,7 +204,7 @@ class Master {
                  compression_name(options_.compression));
     if (tracker_) {
       const MarkGrid& g = tracker_->grid();
-      if (g.empty() && nothing_moves_) {
+      if (g.empty() && !options_.temporal.moves) {
         spdlog::info("temporal coherence on: nothing moves over the frames; after the first frame nothing is traced");
       } else if (g.empty()) {
         spdlog::info("temporal coherence on: no mesh moves; after the first frame only tiles shaded by a moved light are traced");
@@ -265,7 +264,7 @@ class Master {
       summary.frames_planned = static_cast<std::uint32_t>(options_.last_frame - options_.first_frame + 1);
     }
     summary.stopped = stop_reason_;
-    summary.cut_short = stop_signal_ != 0 && cut_short();
+    summary.cut_short = cut_short();
     if (writer_) {
       const FrameWriter::Totals written = writer_->totals();
       summary.writing = true;
@@ -878,9 +877,9 @@ class Master {
     if (it == frames_.end()) return;
     const std::uint32_t done = queue_.tiles_done(sequence);
     const std::uint32_t total = queue_.tiles_per_frame();
-    spdlog::info("frame {} [seq {}]: {} of {} tiles done ({:.0f}%) after {:.0f} s; {} worker{} ready", it->second.frame,
-                 sequence, done, total, 100.0 * done / total, ms_between(it->second.started_at, now) / 1e3,
-                 ready_workers(), ready_workers() == 1 ? "" : "s");
+    spdlog::info("frame {} [seq {}]: {} of {} tiles done ({:.0f}%) after {:.0f} s; {} ready", it->second.frame, sequence,
+                 done, total, 100.0 * done / total, ms_between(it->second.started_at, now) / 1e3,
+                 counted(ready_workers(), "worker", "workers"));
   }
 
   void maybe_start() {
@@ -910,10 +909,12 @@ class Master {
   }
 
   // A new frame can be opened right now (not only "more frames will come").
-  bool can_open_frame() const {
-    return run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) &&
-           more_frames() && (!writer_ || writer_->pending() < FrameWriter::kMaxPending);
+  bool can_open_frame() const { return frame_slot_free() && !writer_full(); }
+  // Every condition but the frame writer's room.
+  bool frame_slot_free() const {
+    return run_started_ && queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) && more_frames();
   }
+  bool writer_full() const { return writer_ && writer_->pending() >= FrameWriter::kMaxPending; }
 
   bool more_frames() const {
     if (stopping_ || done_) return false;
@@ -981,11 +982,7 @@ class Master {
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
     }
-    if (writer_) {
-      note_writer_hold(Clock::now(), run_started_ && more_frames() &&
-                                         queue_.frames_open() < static_cast<std::size_t>(options_.frames_in_flight) &&
-                                         writer_->pending() >= FrameWriter::kMaxPending);
-    }
+    if (writer_) note_writer_hold(Clock::now(), frame_slot_free() && writer_full());
   }
 
   void dispatch() {
@@ -1248,9 +1245,10 @@ class Master {
     });
   }
 
-  /// Whether the run ended before all it was asked for: frames of a --frames range not
+  /// Whether a signal ended the run before all it was asked for: frames of a --frames range not
   /// rendered, or a --loop stopped before its time or with frames abandoned.
   [[nodiscard]] bool cut_short() const {
+    if (stop_signal_ == 0) return false;
     if (options_.loop_seconds <= 0) {
       return finished_.frames() < static_cast<std::uint64_t>(options_.last_frame - options_.first_frame) + 1;
     }
@@ -1348,7 +1346,6 @@ class Master {
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_, last_progress_log_;
   std::optional<Clock::time_point> writer_held_since_;  // see note_writer_hold
   double writer_held_s_ = 0;
-  bool nothing_moves_ = false;  // with temporal coherence: no camera, mesh or light moves over the frames (a log line)
   int stop_signal_ = 0;               ///< the first SIGINT or SIGTERM, 0 if none came
   bool signal_left_frames_ = false;   ///< more frames would have come when it did
   bool frames_abandoned_ = false;     ///< open frames were dropped unfinished

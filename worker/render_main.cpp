@@ -242,7 +242,7 @@ int run(int argc, char** argv) {
     if (app.count("--tile") == 0) tile = rtc::kTemporalTileSize;  // the unit retraced: finer is cheaper
     temporal = std::make_unique<rtc::TemporalFrames>(renderer, tile, mark_cells, frames.first, frames.last);
     const rtc::MarkGrid& g = temporal->grid();
-    if (g.empty() && !rtc::anything_moves(renderer.scene(), frames.first, frames.last)) {
+    if (g.empty() && !temporal_choice.moves) {
       spdlog::info("temporal coherence on: nothing moves over the frames (after the first, nothing is traced); tiles of {} "
                    "pixels", tile);
     } else if (g.empty()) {

@@ -174,11 +174,20 @@ bool temporal_for(const Scene& scene, TemporalMode mode, int first_frame, int la
 }
 
 TemporalChoice choose_temporal(const Scene& scene, TemporalMode mode, int first_frame, int last_frame, bool loop) {
-  if (mode == TemporalMode::Off) return {false, "--temporal off"};
-  if (last_frame <= first_frame && !loop) return {false, "one frame"};
-  if (temporal_for(scene, mode, first_frame, last_frame, loop)) return {true, {}};
-  if (camera_moves(scene, first_frame, last_frame)) return {false, "the camera moves over the frames rendered"};
-  return {false, "--loop over frames where nothing moves: each is traced whole, as a frame-rate run needs"};
+  TemporalChoice c;
+  c.moves = anything_moves(scene, first_frame, last_frame);
+  if (mode == TemporalMode::Off) {
+    c.why_off = "--temporal off";
+  } else if (last_frame <= first_frame && !loop) {
+    c.why_off = "one frame";
+  } else if (temporal_for(scene, mode, first_frame, last_frame, loop)) {
+    c.on = true;
+  } else if (camera_moves(scene, first_frame, last_frame)) {
+    c.why_off = "the camera moves over the frames rendered";
+  } else {
+    c.why_off = "--loop over frames where nothing moves: each is traced whole, as a frame-rate run needs";
+  }
+  return c;
 }
 
 void check_mark_grid(const MarkGrid& grid, const std::string& what) {

@@ -53,6 +53,7 @@ enum class TemporalMode : std::uint8_t { Auto, On, Off };
 struct TemporalChoice {
   bool on = false;
   std::string why_off;  ///< empty when on
+  bool moves = true;    ///< anything_moves over the frames (on, and false: nothing is ever retraced)
 };
 [[nodiscard]] TemporalChoice choose_temporal(const Scene& scene, TemporalMode mode, int first_frame, int last_frame,
                                              bool loop = false);

@@ -261,6 +261,7 @@ TEST(TemporalMode, ChoiceSaysWhyItIsOff) {
     const TemporalChoice c = choose_temporal(s, mode, first, last, loop);
     EXPECT_EQ(c.on, temporal_for(s, mode, first, last, loop) && (last > first || loop));
     EXPECT_EQ(c.on, c.why_off.empty());
+    EXPECT_EQ(c.moves, anything_moves(s, first, last));
     return c.why_off;
   };
   EXPECT_EQ(choice(scene, TemporalMode::Auto, 0, 9, false), "the camera moves over the frames rendered");
