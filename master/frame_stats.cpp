@@ -160,7 +160,7 @@ std::string format_summary(const RunSummary& s) {
     if (!s.stopped.empty()) out += fmt::format(" ({})", s.stopped);
     return out;
   }
-  std::string frames = fmt::format("{} frame{}", s.frames, s.frames == 1 ? "" : "s");
+  std::string frames = counted(s.frames, "frame", "frames");
   if (s.frames_planned > 0 && s.frames < s.frames_planned) {
     frames = fmt::format("{} of {} frames ({}: {} not rendered)", s.frames, s.frames_planned,
                          s.stopped.empty() ? std::string("stopped") : s.stopped, s.frames_planned - s.frames);

@@ -311,10 +311,9 @@ class Master {
     const asio::ip::tcp::endpoint local = acceptor_.local_endpoint();
     const std::string address = local.address().to_string();
     listening_on_ = (local.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(local.port());
-    spdlog::info("rtc-master {} listening on {} ({}, {}), waiting for {} worker{}", build_id(), listening_on_,
+    spdlog::info("rtc-master {} listening on {} ({}, {}), waiting for {}", build_id(), listening_on_,
                  options_.token.empty() ? "no token: loopback only" : "token required", tls_ ? "TLS" : "no TLS",
-                 options_.min_workers,
-                 options_.min_workers == 1 ? "" : "s");
+                 counted(options_.min_workers, "worker", "workers"));
     last_wait_log_ = Clock::now();  // the line above says it; the next in 5 s
     if (!options_.ready_file.empty()) {
       const std::string tmp = options_.ready_file + ".tmp";
@@ -893,7 +892,7 @@ class Master {
     const std::string frames = options_.first_frame == options_.last_frame
                                    ? "frame " + std::to_string(options_.first_frame)
                                    : "frames " + std::to_string(options_.first_frame) + "-" + std::to_string(options_.last_frame);
-    spdlog::info("{} worker{} ready: rendering {}{}", ready_workers(), ready_workers() == 1 ? "" : "s", frames,
+    spdlog::info("{} ready: rendering {}{}", counted(ready_workers(), "worker", "workers"), frames,
                  options_.loop_seconds > 0 ? " in a loop for " + std::to_string(options_.loop_seconds) + " s" : "");
   }
 
@@ -975,10 +974,8 @@ class Master {
       f.started_at = Clock::now();
       if (traced == 0) f.started = true;
       f.to_trace = traced > 0;
-      const OpenFrame& opened = frames_.emplace(f.sequence, std::move(f)).first->second;
-      for (auto& [id, w] : workers_) {
-        if (opened.to_trace && w->state == Worker::State::Ready && !w->rejected) announce(*w, opened);
-      }
+      frames_.emplace(f.sequence, std::move(f));
+      announce_to_ready_workers();
       next_frame_ = next_frame_ >= options_.last_frame ? options_.first_frame : next_frame_ + 1;
       if (options_.loop_seconds <= 0 && next_frame_ == options_.first_frame) next_frame_ = options_.last_frame + 1;
     }
@@ -1049,6 +1046,11 @@ class Master {
   void end_probe() {
     probe_running_ = false;
     if (probe_timer_) probe_timer_->cancel();
+    announce_to_ready_workers();
+  }
+
+  /// Every open frame with tiles to trace, to every ready worker not yet told of it.
+  void announce_to_ready_workers() {
     for (auto& [id, w] : workers_) {
       if (w->state == Worker::State::Ready && !w->rejected) announce_open_frames(*w);
     }

@@ -328,8 +328,8 @@ class WorkerClient {
   }
 
   int run() {
-    spdlog::info("rtc-worker {}: {} render thread{}, {} kernels, {}; master {}", build_id(), threads_,
-                 threads_ == 1 ? "" : "s", isa_name(isa_), isa_packet_description(isa_), options_.connect);
+    spdlog::info("rtc-worker {}: {}, {} kernels, {}; master {}", build_id(),
+                 counted(threads_, "render thread", "render threads"), isa_name(isa_), isa_packet_description(isa_), options_.connect);
     lost_since_ = Clock::now();
     signals_.async_wait([this](const asio::error_code& ec, int signal) {
       if (ec) return;
