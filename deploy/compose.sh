@@ -9,8 +9,9 @@
 # Usage: ./deploy/compose.sh up --build --scale worker=3     # frames: out/compose/default_####.png
 #        ./deploy/compose.sh logs master;  ./deploy/compose.sh down
 #        ./deploy/compose.sh --help                          # this text; compose's own: help
-# Env: RTC_FRAMES_DIR (out/compose), RTC_TOKEN_FILE (out/compose-token), and the settings listed
-# at the top of deploy/docker-compose.yml.
+# Env: RTC_FRAMES_DIR (out/compose), RTC_TOKEN_FILE (out/compose-token), RTC_UID/RTC_GID (yours;
+# 10001, the image's rtc user, when you are root), and the other settings listed at the top of
+# deploy/docker-compose.yml.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 

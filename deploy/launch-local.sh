@@ -4,13 +4,15 @@
 # exit, error or Ctrl-C (Ctrl-C: the master finishes the frames in flight, then all stop).
 #
 # Usage: ./deploy/launch-local.sh [N] [SCENE] [-- extra rtc-master args]
-#   N      workers (default: the machine's core count); each gets cores/N threads (at least 1);
-#          a first argument that is not a number is the SCENE
+#   N      workers (default: the machine's core count, at most 8 a core); each gets cores/N
+#          threads (at least 1); a first argument that is not a number is the SCENE
 #   SCENE  scene file, or a folder holding view.json (default: the built-in scene, its whole
 #          animation)
 #   extra  e.g. -- --frames 0-9 --wire half --compress lz4 --out out/f_####.exr --stats-json s.jsonl
-#          (--token-file F is passed on to the workers too, --tls-cert C makes them trust C, and
-#          --tls-server-name NAME, the workers' alone, is the name C carries if not 127.0.0.1)
+#          (--out's folder must exist; --listen and --ready-file are the script's own, and a
+#          --min-workers above N is refused: the master would wait for ever; --token-file F is
+#          passed on to the workers too, --tls-cert C makes them trust C, and --tls-server-name
+#          NAME, the workers' alone, is the name C carries if not 127.0.0.1)
 # Frames go to out/cluster/<scene>_NNNN.png (rtc-master --out-dir: <scene> is the scene's name as
 # rtc-render names its frames) unless the extra args give --out or --out-dir; --no-out among them
 # (taken by this script) writes no frames at all: a frame-rate run. --min-workers among them

@@ -45,7 +45,8 @@ int run(int argc, char** argv) {
       ->excludes(frames_opt);
   std::string out_dir;
   auto* out_opt = app.add_option("--out", o.out_pattern,
-                                 "write frames to this pattern (#### = frame number; .png, .exr, ...); omitted: frames are discarded");
+                                 "write frames to this pattern (#### = frame number, the sequence number with --loop; .png, "
+                                 ".exr, ...); omitted: frames are discarded");
   app.add_option("--out-dir", out_dir,
                  "write frames to DIR/<scene>_NNNN.png, <scene> the scene's name as rtc-render names its "
                  "frames (instead of --out)")
@@ -53,7 +54,7 @@ int run(int argc, char** argv) {
   app.add_option("--tile", o.tile_size, "tile size in pixels (default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));
   app.add_option("--wire", wire_text, "pixel format on the wire: rgba8 (sRGB, 4 B/px), half (8 B/px), float (16 B/px); "
-                                      "default: rgba8; half (float with --exr-float) for .exr; float for .tif");
+                                      "default: rgba8; half (float with --exr-float) for .exr; float for .tif/.tiff");
   app.add_option("--compress", compress_text, "tile compression: none, lz4, zstd")->capture_default_str();
   app.add_option("--link-mbps", o.link_mbps, "the master's link rate in Mbit/s (e.g. 100 for Fast Ethernet) for the "
                                             "bandwidth-limited frame rate, which counts the 94.1% of it TCP over "
@@ -96,7 +97,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0, 3600))
       ->capture_default_str();
   app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening")->check(rtc::kNotEmpty);
-  rtc::add_temporal_options(app, temporal_text, o.mark_cells);
+  rtc::add_temporal_options(app, temporal_text, o.mark_cells, /*has_loop=*/true);
   app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
   std::string exr_compression_text = "zip";
   app.add_option("--exr-compression", exr_compression_text,

@@ -124,12 +124,12 @@ int run(int argc, char** argv) {
   app.add_option("--out", out_pattern,
                  "output file pattern; #### is the zero-padded frame number; the extension picks the "
                  "format (.exr, .tif/.tiff, .png, .jpg/.jpeg, .ppm) (default: out/<scene>_####.png, out/<scene>.png for one frame)");
-  app.add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--threads", threads, "render threads (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--tile", tile, "tile size in pixels (does not change a pixel; default 32, 16 with temporal coherence)")
       ->check(CLI::Range(1, 4096));
   app.add_option("--isa", isa_text, "kernel ISA: sse4 (4-wide packets), avx2 (8-wide) or avx512 (16-wide); default: the best this CPU and build support")->check(rtc::kNotEmpty);
   rtc::add_kd_clip_option(app, kd_clip);
-  rtc::add_temporal_options(app, temporal_text, mark_cells);
+  rtc::add_temporal_options(app, temporal_text, mark_cells, /*has_loop=*/false);
   app.add_flag("--single-rays", single_rays, "trace one ray at a time instead of packets (same pixels)");
   app.add_flag("--no-specialise", no_specialise,
                "the general tile kernel instead of the one specialised to the scene's features (same pixels)");
@@ -252,8 +252,9 @@ int run(int argc, char** argv) {
                    "move; tiles of {} pixels",
                    g.dims.x, g.dims.y, g.dims.z, g.lo.x, g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z, tile);
     }
-  } else if (multiple && temporal_mode == rtc::TemporalMode::Auto) {
-    spdlog::info("temporal coherence off ({}): every frame traced whole", temporal_choice.why_off);
+  } else if (temporal_mode == rtc::TemporalMode::On || (multiple && temporal_mode == rtc::TemporalMode::Auto)) {
+    // (--temporal on is off for a single frame: said, since it was asked for)
+    spdlog::info("temporal coherence off ({}){}", temporal_choice.why_off, multiple ? ": every frame traced whole" : "");
   }
   double last_full_ms = 0;
   rtc::Timer run_timer;

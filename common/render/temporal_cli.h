@@ -9,11 +9,14 @@
 
 namespace rtc {
 
-inline void add_temporal_options(CLI::App& app, std::string& mode, int& cells) {
+/// `has_loop`: the program has --loop (rtc-master), whose frames where nothing moves turn auto off.
+inline void add_temporal_options(CLI::App& app, std::string& mode, int& cells, bool has_loop) {
   app.add_option("--temporal", mode,
-                 "temporal coherence: after the first frame trace only the tiles whose rays crossed space a moving "
-                 "mesh left or entered, or that a moved light shades (same pixels): auto (on unless the camera "
-                 "moves over the frames rendered; rtc-master: off for a --loop where nothing moves), on, off")
+                 std::string("temporal coherence: after the first frame trace only the tiles whose rays crossed space a "
+                             "moving mesh left or entered, or that a moved light shades (same pixels): auto (on unless "
+                             "the camera moves over the frames rendered") +
+                     (has_loop ? " or a --loop's frames hold nothing that moves" : "") +
+                     "), on, off; always off for a single frame")
       ->check(CLI::IsMember({"auto", "on", "off"}))
       ->capture_default_str();
   app.add_option("--mark-cells", cells,

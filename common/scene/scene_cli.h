@@ -53,8 +53,9 @@ inline void add_scene_cli_options(CLI::App& app, SceneCliOptions& o) {
 inline void add_kd_clip_option(CLI::App& app, std::string& text) {
   app.add_option("--kd-clip", text,
                  "kd-tree perfect splits (straddling triangles clipped to each node: faster tracing, "
-                 "1-5x slower builds): auto (on for the static meshes' tree, built once; off for the trees "
-                 "of moving meshes, rebuilt as they move), on, off")
+                 "1-5x slower builds): auto (on for the trees built once: the static meshes' and each moving "
+                 "mesh's object-space tree; off for world-space trees rebuilt as a mesh moves, rtc-render's "
+                 "--rebuild-moving-trees), on, off")
       ->check(CLI::IsMember({"auto", "on", "off"}))
       ->capture_default_str();
 }

@@ -376,8 +376,8 @@ case_interrupted() {
   local args=(--width 1200 --height 900 --frames 0-5 --temporal off --exr-float)
   # The shorter of two uninterrupted runs: under ctest -j a run slowed by another test's load
   # would put the later signals past the end of runs that go at full speed.
-  local t0 t1 total="" pass
-  for pass in 1 2; do
+  local t0 t1 total=""
+  for _ in 1 2; do
     rm -rf "$work/whole" && mkdir "$work/whole"
     t0=$(date +%s.%N)
     run whole "$render" "${args[@]}" --out "$work/whole/f_####.exr"
@@ -466,6 +466,10 @@ case_temporal() {
   for n in 0000 0001 0002 0003 0004 0005; do
     cmp -s "$work/i_$n.png" "$work/f_$n.png" || fail "frame $n differs between --temporal on and off"
   done
+  # Asked for and not possible: --temporal on for a single frame says it is off, and why.
+  run one "$render" --frames 0 --temporal on --width 32 --height 24 --out "$work/one.png"
+  expect_rc one 0
+  expect_in one err "temporal coherence off (one frame)"
   run bad "$render" --temporal maybe --frames 0-1 --width 8 --height 8 --out "$work/b_####.png"
   [[ $rc -ne 0 ]] || fail "--temporal maybe was accepted"
   expect_in bad err "--temporal"
