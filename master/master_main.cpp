@@ -16,6 +16,7 @@
 #include "common/base/log.h"
 #include "common/base/process_memory.h"
 #include "common/image/image.h"
+#include "common/image/image_cli.h"
 #include "common/image/pixel_format.h"
 #include "common/render/temporal_cli.h"
 #include "common/scene/scene_cli.h"
@@ -32,7 +33,6 @@ int run(int argc, char** argv) {
   rtc::SceneCliOptions scene_options;
   rtc::MasterOptions o;
   std::string frames_text, wire_text, compress_text = std::string(rtc::compression_name(rtc::kDefaultCompression)), token_file, log_level = "info";
-  bool exr_float = false, no_depth = false, no_normal = false;
   std::string temporal_text = "auto";
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--listen", o.listen, "HOST:PORT to accept workers on; port 0 picks a free one; a non-loopback "
@@ -98,13 +98,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--ready-file", o.ready_file, "write the HOST:PORT listened on to this file once listening")->check(rtc::kNotEmpty);
   rtc::add_temporal_options(app, temporal_text, o.mark_cells, /*has_loop=*/true);
-  app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
-  std::string exr_compression_text = "zip";
-  app.add_option("--exr-compression", exr_compression_text,
-                 "EXR compression: none, rle, zips, zip, piz (all lossless), pxr24, b44, b44a, dwaa, dwab (lossy)")
-      ->capture_default_str();
-  app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files (and off the wire)");
-  app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z channels out of EXR files (and off the wire)");
+  rtc::ImageCliOptions image_options;
+  rtc::add_image_write_options(app, image_options, /*on_the_wire=*/true);
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-master")) return *status;
   // A ready file left by a master that was killed outright (SIGKILL gives it no time to remove
@@ -131,10 +126,8 @@ int run(int argc, char** argv) {
   const std::optional<rtc::Compression> compression = rtc::parse_compression(compress_text);
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
-  const std::optional<rtc::ExrCompression> exr_compression = rtc::parse_exr_compression(exr_compression_text);
-  if (!exr_compression) {
-    throw rtc::Error("--exr-compression: expected " + rtc::exr_compression_names() + ", got \"" + exr_compression_text + "\"");
-  }
+  o.write_options = rtc::parse_image_write_options(image_options);
+  const bool exr_float = image_options.exr_float;
   const rtc::TemporalMode temporal_mode = rtc::parse_temporal_mode(temporal_text);
   (void)rtc::net::parse_host_port(o.listen, "--listen");
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
@@ -174,19 +167,12 @@ int run(int argc, char** argv) {
                  rtc::wire_format_name(o.wire), o.out_pattern);
   }
   if (exr) {
-    o.channels = static_cast<std::uint8_t>((no_depth ? 0 : rtc::kChannelDepth) | (no_normal ? 0 : rtc::kChannelNormal));
+    o.channels = static_cast<std::uint8_t>((o.write_options.write_depth ? rtc::kChannelDepth : 0) |
+                                           (o.write_options.write_normal ? rtc::kChannelNormal : 0));
   }
-  o.write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
-  o.write_options.write_depth = !no_depth;
-  o.write_options.write_normal = !no_normal;
-  o.write_options.exr_compression = *exr_compression;
-  if (app.count("--exr-compression") > 0 && !exr) {
-    spdlog::warn("--exr-compression applies to EXR output only; {}",
-                 o.out_pattern.empty() ? std::string("no frames are written (no --out)") : o.out_pattern + " is not an EXR file");
-  } else if (exr && rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half,
-                                               !no_depth)) {
-    spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
-  }
+  rtc::warn_about_image_options(app, image_options, o.write_options, exr,
+                                o.out_pattern.empty() ? std::string("no frames are written (no --out)")
+                                                      : o.out_pattern + " is not an EXR file");
   // A tile's pixels travel in one message: the largest tile must fit its payload limit.
   const std::size_t tile_bytes = rtc::max_encoded_tile_bytes(rtc::raw_tile_bytes(o.tile_size, o.tile_size, o.wire, o.channels));
   if (tile_bytes == 0 || tile_bytes + 128 > rtc::protocol::kMaxPayload) {

@@ -28,6 +28,7 @@
 #include "common/base/signal_name.h"
 #include "common/base/timer.h"
 #include "common/image/image.h"
+#include "common/image/image_cli.h"
 #include "common/render/render_kernels.h"
 #include "common/render/renderer.h"
 #include "common/render/temporal_cli.h"
@@ -117,8 +118,7 @@ int run(int argc, char** argv) {
   int threads = 0, tile = 32;
   std::string isa_text, log_level = "info", kd_clip = "auto", temporal_text = "auto";
   int mark_cells = rtc::kDefaultMarkCells;
-  bool exr_float = false, single_rays = false, no_depth = false, no_normal = false, no_specialise = false,
-       no_skip_empty = false, rebuild_moving = false;
+  bool single_rays = false, no_specialise = false, no_skip_empty = false, rebuild_moving = false;
   rtc::add_scene_cli_options(app, scene_options);
   app.add_option("--frames", frames_text, "frames to render, A-B or A, inclusive (default: the scene's animation range)");
   app.add_option("--out", out_pattern,
@@ -138,13 +138,8 @@ int run(int argc, char** argv) {
   app.add_flag("--rebuild-moving-trees", rebuild_moving,
                "rebuild a moving mesh's kd-tree in world space whenever it moves instead of building it once in "
                "object space and transforming the rays (for timing; pixels differ only by float rounding)");
-  app.add_flag("--exr-float", exr_float, "write 32-bit float EXR channels instead of half");
-  std::string exr_compression_text = "zip";
-  app.add_option("--exr-compression", exr_compression_text,
-                 "EXR compression: none, rle, zips, zip, piz (all lossless), pxr24, b44, b44a, dwaa, dwab (lossy)")
-      ->capture_default_str();
-  app.add_flag("--no-depth", no_depth, "leave the Z (depth) channel out of EXR files");
-  app.add_flag("--no-normal", no_normal, "leave the N.X N.Y N.Z (normal) channels out of EXR files");
+  rtc::ImageCliOptions image_options;
+  rtc::add_image_write_options(app, image_options, /*on_the_wire=*/false);
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")->capture_default_str();
   if (const std::optional<int> status = rtc::parse_command_line(app, argc, argv, "rtc-render")) return *status;
 
@@ -159,10 +154,7 @@ int run(int argc, char** argv) {
       throw rtc::Error(std::string("--isa: ") + e.what());
     }
   }
-  const std::optional<rtc::ExrCompression> exr_compression = rtc::parse_exr_compression(exr_compression_text);
-  if (!exr_compression) {
-    throw rtc::Error("--exr-compression: expected " + rtc::exr_compression_names() + ", got \"" + exr_compression_text + "\"");
-  }
+  const rtc::ImageWriteOptions write_options = rtc::parse_image_write_options(image_options);
   std::optional<rtc::FrameRange> requested_frames;
   if (app.count("--frames") > 0) requested_frames = rtc::parse_frame_range(frames_text);  // "" is an error too
   if (app.count("--out") > 0 && out_pattern.empty()) throw rtc::Error("--out: the pattern is empty");
@@ -186,12 +178,8 @@ int run(int argc, char** argv) {
   if (default_out) out_pattern = "out/" + rtc::file_stem_for(scene.name) + (multiple ? "_####.png" : ".png");
   const std::filesystem::path first_name(rtc::expand_frame_pattern(out_pattern, frames.first, multiple));
   // Depth and normals are kept for EXR files only, unless both are left out.
-  const bool aovs = rtc::image_file_kind(first_name) == rtc::ImageFileKind::Exr && !(no_depth && no_normal);
-  rtc::ImageWriteOptions write_options;
-  write_options.exr_type = exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half;
-  write_options.write_depth = !no_depth;
-  write_options.write_normal = !no_normal;
-  write_options.exr_compression = *exr_compression;
+  const bool aovs = rtc::image_file_kind(first_name) == rtc::ImageFileKind::Exr &&
+                    (write_options.write_depth || write_options.write_normal);
   if (const std::string problem = rtc::output_size_problem(first_name, scene.width, scene.height); !problem.empty()) {
     throw rtc::Error("--out: " + first_name.string() + ": " + problem);
   }
@@ -209,17 +197,9 @@ int run(int argc, char** argv) {
   }
   // A bad pattern, extension or output folder, for any frame, is reported before anything is rendered.
   const std::filesystem::path first_out = rtc::check_output_pattern(out_pattern, frames.first, frames.last, multiple);
-  if (rtc::image_file_kind(first_out) != rtc::ImageFileKind::Exr) {
-    // Options that only EXR files take are not silently dropped.
-    for (const auto& [given, option] : {std::pair{exr_float, "--exr-float"}, std::pair{no_depth, "--no-depth"},
-                                        std::pair{no_normal, "--no-normal"},
-                                        std::pair{app.count("--exr-compression") > 0, "--exr-compression"}}) {
-      if (given) spdlog::warn("{} applies to EXR output only; {} is not an EXR file", option, first_out.string());
-    }
-  } else if (rtc::exr_compression_lossy(*exr_compression, exr_float ? rtc::ExrPixelType::Float : rtc::ExrPixelType::Half,
-                                               !no_depth)) {
-    spdlog::warn("--exr-compression {} is lossy: the files' pixels are not the rendered ones", exr_compression_text);
-  }
+  rtc::warn_about_image_options(app, image_options, write_options,
+                                rtc::image_file_kind(first_out) == rtc::ImageFileKind::Exr,
+                                first_out.string() + " is not an EXR file");
 
   rtc::RenderOptions options;
   options.isa = isa;

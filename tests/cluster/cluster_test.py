@@ -1931,6 +1931,9 @@ def case_master_cli_errors(c):
         (["--exr-compression", "gzip"], r'--exr-compression: expected none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab, got "gzip"'),
         (["--log-level", "loud"], r'--log-level: expected trace, debug, info, warn, error, critical or off, got "loud"'),
         ([degenerate], rf"{re.escape(degenerate)}: frame 0: camera: eye and look_at coincide"),
+        # An EXR option for other output is said, not dropped (then the tile fails the message limit).
+        (["--out", c.path("x_####.png"), "--no-normal", "--wire", "float", "--tile", "4096"],
+         r"--no-normal applies to EXR output only; \S*x_####\.png is not an EXR file"),
     ]
     for i, (args, pattern) in enumerate(cases):
         # A ready file as a master killed outright leaves it: each of these masters removes it
