@@ -127,7 +127,6 @@ int run(int argc, char** argv) {
   if (!compression) throw rtc::Error("--compress: expected none, lz4 or zstd, got \"" + compress_text + "\"");
   o.compression = *compression;
   o.write_options = rtc::parse_image_write_options(image_options);
-  const bool exr_float = image_options.exr_float;
   const rtc::TemporalMode temporal_mode = rtc::parse_temporal_mode(temporal_text);
   (void)rtc::net::parse_host_port(o.listen, "--listen");
   if (o.tls_cert.empty() != o.tls_key.empty()) throw rtc::Error("--tls-cert and --tls-key go together");
@@ -146,7 +145,7 @@ int run(int argc, char** argv) {
   const bool exr = kind == rtc::ImageFileKind::Exr;
   const bool tiff = kind == rtc::ImageFileKind::Tiff;
   if (app.count("--wire") == 0) {  // an empty --wire "" is a bad word, not the default
-    o.wire = exr ? (exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half)
+    o.wire = exr ? (image_options.exr_float ? rtc::WireFormat::Float : rtc::WireFormat::Half)
                  : (tiff ? rtc::WireFormat::Float : rtc::WireFormat::Rgba8);
   } else {
     const std::optional<rtc::WireFormat> wire = rtc::parse_wire_format(wire_text);
@@ -159,7 +158,7 @@ int run(int argc, char** argv) {
   if (tiff && o.wire == rtc::WireFormat::Half) {
     spdlog::warn("--wire half with TIFF output: the files hold half-precision values (rtc-render writes float)");
   }
-  if (exr && exr_float && o.wire == rtc::WireFormat::Half) {
+  if (exr && image_options.exr_float && o.wire == rtc::WireFormat::Half) {
     spdlog::warn("--exr-float with --wire half: the files hold half-precision values");
   }
   if (!exr && !tiff && o.wire != rtc::WireFormat::Rgba8 && !o.out_pattern.empty()) {

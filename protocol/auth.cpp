@@ -115,9 +115,9 @@ std::string read_token_file_warning_if_weak(const std::string& path) {
 
 std::string weak_token_warning(const std::string& token, const std::string& path) {
   if (token.size() >= kMinStrongToken) return {};
-  return "--token-file " + path + ": the token is " + counted(token.size(), "byte", "bytes") + "; anyone who records one handshake can guess a short token offline. Use " +
-         std::to_string(kMinStrongToken) + " or more random bytes, e.g. head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \\n' > " +
-         path;
+  return "--token-file " + path + ": the token is " + counted(token.size(), "byte", "bytes") +
+         "; anyone who records one handshake can guess a short token offline. Use " + std::to_string(kMinStrongToken) +
+         " or more random bytes, e.g. head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \\n' > " + path;
 }
 
 }  // namespace rtc::protocol

@@ -3,6 +3,7 @@
 // where they cannot apply.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <utility>
 
