@@ -69,6 +69,12 @@ int run(int argc, char** argv) {
   app.add_option("--min-workers", o.min_workers, "start rendering once this many workers are ready")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  app.add_option("--wait-seconds", o.wait_seconds,
+                 "give up (exit 1) when fewer than --min-workers workers are ready (have loaded the scene) this long after listening, or "
+                 "none this long while frames wait during the run (the frames finished are written); 0: wait for ever")
+      ->check(rtc::kNotNan)
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
   app.add_option("--frames-in-flight", o.frames_in_flight, "frames handed out at once (workers never idle at frame ends)")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();

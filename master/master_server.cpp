@@ -12,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <utility>
 
@@ -315,6 +316,7 @@ class Master {
                  options_.token.empty() ? "no token: loopback only" : "token required", tls_ ? "TLS" : "no TLS",
                  counted(options_.min_workers, "worker", "workers"));
     last_wait_log_ = Clock::now();  // the line above says it; the next in 5 s
+    short_since_ = last_wait_log_;   // --wait-seconds counts from here
     if (!options_.ready_file.empty()) {
       const std::string tmp = options_.ready_file + ".tmp";
       std::error_code fs_ec;
@@ -848,11 +850,18 @@ class Master {
 
   /// Every 5 s while nothing renders for want of workers: before the run, fewer ready than
   /// --min-workers (some may be ready already); after its start, none ready with frames open.
+  /// Whether nothing renders for want of workers: before the run, fewer ready than
+  /// --min-workers; after its start, none ready with frames open.
+  [[nodiscard]] bool short_of_workers() const {
+    const std::size_t ready = ready_workers();
+    return run_started_ ? ready == 0 && queue_.frames_open() > 0
+                        : ready < static_cast<std::size_t>(options_.min_workers);
+  }
+
   void log_waiting(Clock::time_point now) {
     const std::size_t ready = ready_workers();
     const auto needed = static_cast<std::size_t>(options_.min_workers);
-    const bool short_of_workers = run_started_ ? ready == 0 && queue_.frames_open() > 0 : ready < needed;
-    if (!short_of_workers || ms_between(last_wait_log_, now) < 5000) return;
+    if (!short_of_workers() || ms_between(last_wait_log_, now) < 5000) return;
     last_wait_log_ = now;
     std::size_t loading = 0;
     for (const auto& [id, w] : workers_) loading += w->state == Worker::State::Scene ? 1 : 0;
@@ -864,6 +873,31 @@ class Master {
       spdlog::info("waiting for workers on {}: {} of the {} needed to start ready{}", listening_on_, ready, needed,
                    loading_text);
     }
+  }
+
+  /// --wait-seconds: ends the run (exit 1) once the master has been short of workers
+  /// (short_of_workers) that long without a break; true when it did. The frames finished before
+  /// are written; those in flight are abandoned. Not while a signal's drain runs (that has its
+  /// own limit, --drain-seconds).
+  bool give_up_waiting(Clock::time_point now) {
+    if (!short_of_workers() || stopping_ || done_) {
+      short_since_.reset();
+      return false;
+    }
+    if (!short_since_) short_since_ = now;
+    if (options_.wait_seconds <= 0 || ms_between(*short_since_, now) < options_.wait_seconds * 1000.0) return false;
+    const std::string waited = fmt::format("{:g} s (--wait-seconds)", options_.wait_seconds);
+    if (run_started_) {
+      const int sequence = queue_.open_frames().front();
+      const auto it = frames_.find(static_cast<std::uint32_t>(sequence));
+      const std::string frame = it == frames_.end() ? "" : fmt::format("frame {} [seq {}] open, ", it->second.frame, sequence);
+      fatal(fmt::format("no worker ready for {} with {}{} waiting: giving up", waited, frame,
+                        counted(queue_.waiting(), "tile", "tiles")));
+    } else {
+      fatal(fmt::format("{} of the {} needed ready after {}: giving up before the first frame", ready_workers(),
+                        counted(options_.min_workers, "worker", "workers"), waited));
+    }
+    return true;
   }
 
   /// A long frame says how far it is every 10 s (after the last frame line or progress line):
@@ -1178,6 +1212,7 @@ class Master {
       }
     }
     log_waiting(now);
+    if (give_up_waiting(now)) return;
     log_frame_progress(now);
     // The tail of a frame may need re-issuing although no message arrived.
     if (run_started_) {
@@ -1346,6 +1381,7 @@ class Master {
 
   bool run_started_ = false;
   Clock::time_point run_start_, last_complete_, last_heartbeat_, last_wait_log_, last_progress_log_;
+  std::optional<Clock::time_point> short_since_;  ///< since when short_of_workers() held (give_up_waiting)
   std::optional<Clock::time_point> writer_held_since_;  // see note_writer_hold
   double writer_held_s_ = 0;
   int stop_signal_ = 0;               ///< the first SIGINT or SIGTERM, 0 if none came

@@ -2434,6 +2434,81 @@ def case_temporal_worker_killed(c):
         fail(f"the victim held no tile when killed in {len(requeued_by_run)} runs: the requeue went untested")
 
 
+def case_master_gives_up_waiting(c):
+    """--wait-seconds: a master short of workers that long exits 1 and says why, before the run
+    (none at all; one of --min-workers 2) and during it (its only worker killed), writing the
+    frames it finished; a worker that comes within the wait lets the run go on."""
+    def gave_up(master, pattern, lo, hi, what):
+        rc = master.wait(30 * TIMEOUT_SCALE, what)
+        elapsed = time.monotonic() - master.started
+        if rc != 1:
+            fail(f"{master.name}: {describe_rc(rc)}, expected exit status 1 ({what})")
+        m = expect_log(master, pattern, what, timeout=1)
+        if not lo <= elapsed <= hi * TIMEOUT_SCALE:
+            fail(f"{master.name} gave up after {elapsed:.1f} s, expected {lo}-{hi} s ({what})")
+        print(f"{master.name}: exit 1 after {elapsed:.1f} s: {m.group(0)}")
+        return m
+
+    # No worker at all: gives up 1.5 s after listening, its ready file gone.
+    m0, _, ready = c.start_master("none", [*SMALL, "--frames", "0", "--wait-seconds", "1.5"])
+    gave_up(m0, r"0 of the 1 worker needed ready after 1\.5 s \(--wait-seconds\): giving up before the first frame",
+            1.4, 10, "give up with no worker")
+    if os.path.exists(ready):
+        fail(f"the master's ready file {ready} is still there after it gave up")
+
+    # One of --min-workers 2: the worker is sent away with the reason and exits 0.
+    m1, addr, _ = c.start_master("one", [*SMALL, "--frames", "0", "--min-workers", "2", "--wait-seconds", "3"])
+    w1 = c.start_worker("one-w", addr, 1)
+    gave_up(m1, r"1 of the 2 workers needed ready after 3 s \(--wait-seconds\)", 2.9, 15,
+            "give up with one worker of two")
+    expect_exit(w1, 0, 15, "exit 0 after the master's Goodbye")
+    expect_log(w1, r"said goodbye.*--wait-seconds", "the master's reason", timeout=1)
+
+    # A worker that comes within the wait: the run goes on (the wait restarts from nothing).
+    out = c.mkdir("late")
+    m2, addr, _ = c.start_master("late", [*SMALL, "--frames", "0-1", "--wait-seconds", "6", "--out",
+                                          os.path.join(out, "m_####.png")])
+    time.sleep(1.0)
+    w2 = c.start_worker("late-w", addr, 1)
+    expect_exit(m2, 0, 60, "render both frames with the worker that came within --wait-seconds")
+    expect_exit(w2, 0, 15, "exit 0 after the master's Goodbye")
+
+    # During the run: the only worker is killed after the first frame; the master gives up 2 s
+    # later, and the frames it finished are on disk, equal to rtc-render's.
+    scene = [*SLOWER, "--tile", "16", *WHOLE]
+    ref = c.reference("ref", scene, "0-11", "png")
+    out = c.mkdir("run")
+    stats = c.path("stats.json")
+    m3, addr, _ = c.start_master("run", [*scene, "--frames", "0-11", "--out", os.path.join(out, "m_####.png"),
+                                         "--stats-json", stats, "--wait-seconds", "2"])
+    victim = c.start_worker("run-w", addr, 1)
+    wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [m3])
+    if not m3.alive():
+        fail("the master finished before its worker could be killed")
+    victim.send(signal.SIGKILL)
+    killed = time.monotonic()
+    expect_exit(victim, -signal.SIGKILL, 10, "die of SIGKILL")
+    rc = m3.wait(30 * TIMEOUT_SCALE, "give up 2 s after its last worker left")
+    after = time.monotonic() - killed
+    if rc != 1:
+        fail(f"run: {describe_rc(rc)}, expected exit status 1 (no worker for --wait-seconds 2)")
+    m = expect_log(m3, r"no worker ready for 2 s \(--wait-seconds\) with frame \d+ \[seq \d+\] open, \d+ tiles? waiting: "
+                       r"giving up", "why it gave up", timeout=1)
+    if not 1.9 <= after <= 15 * TIMEOUT_SCALE:
+        fail(f"the master gave up {after:.1f} s after its worker was killed, expected about 2 s")
+    print(f"run: exit 1 {after:.1f} s after the kill: {m.group(0)}")
+    frames, summary = read_stats(stats)
+    done = sorted(f["frame"] for f in frames)
+    if not done or done != list(range(0, len(done))) or len(done) >= 12:
+        fail(f"stats JSON has frames {done}: expected the first few of 0-11")
+    if summary is None or "--wait-seconds" not in summary.get("stopped", ""):
+        fail(f"the summary does not say the run stopped for --wait-seconds: {summary}")
+    c.expect_frames_equal(out, "m", ref, done, "png")
+    written = sorted(os.listdir(out))
+    if written != [f"m_{n:04d}.png" for n in done]:
+        fail(f"frames on disk {written}, expected those finished, {done}")
+
+
 CASES = {
     "temporal_animations": case_temporal_animations,
     "temporal_exr": case_temporal_exr,
@@ -2455,6 +2530,7 @@ CASES = {
     "worker_frozen": case_worker_frozen,
     "non_loopback_needs_token": case_non_loopback_needs_token,
     "worker_gives_up": case_worker_gives_up,
+    "master_gives_up_waiting": case_master_gives_up_waiting,
     "bad_master": case_bad_master,
     "big_message_before_auth": case_big_message_before_auth,
     "connection_limits": case_connection_limits,
