@@ -71,7 +71,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--wait-seconds", o.wait_seconds,
                  "give up (exit 1) when fewer than --min-workers workers are ready (have loaded the scene) this long after listening, or "
-                 "none this long while frames wait during the run (the frames finished are written); 0: wait for ever")
+                 "none this long while frames are open during the run (the frames finished are written, those in flight "
+                 "abandoned); 0: wait for ever")
       ->check(rtc::kNotNan)
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();

@@ -919,6 +919,7 @@ class Master {
     if (run_started_ || ready_workers() < static_cast<std::size_t>(options_.min_workers)) return;
     run_started_ = true;
     run_start_ = Clock::now();
+    short_since_.reset();  // --wait-seconds: the wait before the run is over
     io_cpu_at_start_ = cpu_seconds(CLOCK_THREAD_CPUTIME_ID);
     process_cpu_at_start_ = cpu_seconds(CLOCK_PROCESS_CPUTIME_ID);
     last_complete_ = run_start_;
