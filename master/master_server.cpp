@@ -848,8 +848,6 @@ class Master {
     return n;
   }
 
-  /// Every 5 s while nothing renders for want of workers: before the run, fewer ready than
-  /// --min-workers (some may be ready already); after its start, none ready with frames open.
   /// Whether nothing renders for want of workers: before the run, fewer ready than
   /// --min-workers; after its start, none ready with frames open.
   [[nodiscard]] bool short_of_workers() const {
@@ -858,6 +856,8 @@ class Master {
                         : ready < static_cast<std::size_t>(options_.min_workers);
   }
 
+  /// Every 5 s while short_of_workers() (some may be ready already): how many are ready and how
+  /// many are taking the scene.
   void log_waiting(Clock::time_point now) {
     const std::size_t ready = ready_workers();
     const auto needed = static_cast<std::size_t>(options_.min_workers);

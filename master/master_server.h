@@ -28,7 +28,7 @@ struct MasterOptions {
   double link_mbps = 0;       ///< 0: measure on the first worker's connection
   int min_workers = 1;        ///< no frame starts before this many workers are ready
   /// > 0: give up (exit 1) when fewer than min_workers are ready this many seconds after
-  /// listening, or none while frames wait for this long during the run; 0: wait for ever.
+  /// listening, or none for this long while frames are open during the run; 0: wait for ever.
   double wait_seconds = 0;
   int frames_in_flight = 2;
   int tiles_per_worker = 0;   ///< K; 0: 2 x the worker's threads + 2 (at least 2)
