@@ -2466,22 +2466,28 @@ def case_master_gives_up_waiting(c):
     expect_exit(w1, 0, 15, "exit 0 after the master's Goodbye")
     expect_log(w1, r"said goodbye.*--wait-seconds", "the master's reason", timeout=1)
 
-    # A worker that comes within the wait (counted from listening): the run goes on.
-    out = c.mkdir("late")
-    m2, addr, _ = c.start_master("late", [*SMALL, "--frames", "0-1", "--wait-seconds", "6", "--out",
-                                          os.path.join(out, "m_####.png")])
+    # A worker that comes within the wait (counted from listening): the run goes on, and lasts
+    # (--loop) well past the wait, so a master that gave up regardless of its worker fails here.
+    wait_late = 2.5
+    m2, addr, _ = c.start_master("late", [*SMALL, "--loop", "5", "--wait-seconds", f"{wait_late:g}"])
     time.sleep(1.0)
     w2 = c.start_worker("late-w", addr, 1)
-    expect_exit(m2, 0, 60, "render both frames with the worker that came within --wait-seconds")
+    expect_exit(m2, 0, 60, "render its --loop run with the worker that came within --wait-seconds")
     expect_exit(w2, 0, 15, "exit 0 after the master's Goodbye")
+    lasted = time.monotonic() - m2.started
+    if lasted < wait_late + 1:
+        fail(f"late: the master exited 0 after {lasted:.1f} s, before its 5 s --loop could have run")
+    if "giving up" in m2.log():
+        fail("late: the master logged that it was giving up, though its worker came within the wait")
+    print(f"late: a worker 1 s into a {wait_late:g} s wait; the --loop run went on, exit 0 after {lasted:.1f} s")
 
     # During the run: the only worker is killed after the first frame; the master gives up 2 s
-    # later, and the frames it finished are on disk, equal to rtc-render's.
+    # later, and the frames it finished are on disk, equal to rtc-render's. 200 frames, so that
+    # however fast the tracer, the kill lands with frames still to render.
     scene = [*SLOWER, "--tile", "16", *WHOLE]
-    ref = c.reference("ref", scene, "0-11", "png")
     out = c.mkdir("run")
     stats = c.path("stats.json")
-    m3, addr, _ = c.start_master("run", [*scene, "--frames", "0-11", "--out", os.path.join(out, "m_####.png"),
+    m3, addr, _ = c.start_master("run", [*scene, "--frames", "0-199", "--out", os.path.join(out, "m_####.png"),
                                          "--stats-json", stats, "--wait-seconds", "2"])
     victim = c.start_worker("run-w", addr, 1)
     wait_for(lambda: len(read_stats(stats)[0]) >= 1, 60, "the first frame", [m3])
@@ -2501,10 +2507,11 @@ def case_master_gives_up_waiting(c):
     print(f"run: exit 1 {after:.1f} s after the kill: {m.group(0)}")
     frames, summary = read_stats(stats)
     done = sorted(f["frame"] for f in frames)
-    if not done or done != list(range(0, len(done))) or len(done) >= 12:
-        fail(f"stats JSON has frames {done}: expected the first few of 0-11")
+    if not done or done != list(range(0, len(done))) or len(done) >= 200:
+        fail(f"stats JSON has frames {done}: expected the first few of 0-199")
     if summary is None or "--wait-seconds" not in (summary.get("stopped") or ""):
         fail(f"the summary does not say the run stopped for --wait-seconds: {summary}")
+    ref = c.reference("ref", scene, f"0-{done[-1]}", "png")
     c.expect_frames_equal(out, "m", ref, done, "png")
     written = sorted(os.listdir(out))
     if written != [f"m_{n:04d}.png" for n in done]:
