@@ -894,8 +894,24 @@ class Master {
       fatal(fmt::format("no worker ready for {} with {}{} waiting: giving up", waited, frame,
                         counted(queue_.waiting(), "tile", "tiles")));
     } else {
-      fatal(fmt::format("{} of the {} needed ready after {}: giving up before the first frame", ready_workers(),
-                        counted(options_.min_workers, "worker", "workers"), waited));
+      // Those still taking the scene, and how far: a --wait-seconds too short for the scene's
+      // transfer and load shows here.
+      std::string loading;
+      for (const auto& [id, w] : workers_) {
+        if (w->state != Worker::State::Scene) continue;
+        const std::size_t total = scene_bytes_.size();
+        const bool mb = total >= 100'000;
+        const auto amount = [mb](std::uint64_t n) {
+          return mb ? fmt::format("{:.1f}", static_cast<double>(n) / 1e6) : std::to_string(n);
+        };
+        const std::string how = w->scene_offset >= total
+                                    ? fmt::format("all {} {} sent, loading", amount(total), mb ? "MB" : "bytes")
+                                    : fmt::format("{} of {} {} sent", amount(w->scene_offset), amount(total),
+                                                  mb ? "MB" : "bytes");
+        loading += fmt::format("{} {}: {}", loading.empty() ? "; still taking the scene:" : ";", w->describe(), how);
+      }
+      fatal(fmt::format("{} of the {} needed ready after {}: giving up before the first frame{}", ready_workers(),
+                        counted(options_.min_workers, "worker", "workers"), waited, loading));
     }
     return true;
   }

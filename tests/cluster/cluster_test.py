@@ -2461,8 +2461,14 @@ def case_master_gives_up_waiting(c):
     m1, addr, _ = c.start_master("one", [*SMALL, "--frames", "0", "--min-workers", "2", "--wait-seconds",
                                          f"{wait_one:g}"])
     w1 = c.start_worker("one-w", addr, 1)
-    gave_up(m1, r"1 of the 2 workers needed ready after " + re.escape(f"{wait_one:g}") + r" s \(--wait-seconds\)",
-            wait_one - 0.1, 15, "give up with one worker of two")
+    # and a third that asks for the scene and never says it has loaded it: the line names it.
+    slow = FakeWorker(addr, "one-slow")
+    slow.join(have_scene=False)
+    gave_up(m1, r"1 of the 2 workers needed ready after " + re.escape(f"{wait_one:g}") + r" s \(--wait-seconds\): "
+            r"giving up before the first frame; still taking the scene: w\d+ \(one-slow at " + re.escape(slow.me) +
+            r", 1 thread, [^)]*\): (all [\d.]+ (MB|bytes) sent, loading|[\d.]+ of [\d.]+ (MB|bytes) sent)$",
+            wait_one - 0.1, 15, "give up with one worker of two, naming the one still taking the scene")
+    slow.close()
     expect_exit(w1, 0, 15, "exit 0 after the master's Goodbye")
     expect_log(w1, r"said goodbye.*--wait-seconds", "the master's reason", timeout=1)
 
