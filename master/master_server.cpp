@@ -896,18 +896,18 @@ class Master {
     } else {
       // Those still taking the scene, and how far: a --wait-seconds too short for the scene's
       // transfer and load shows here.
+      const std::size_t total = scene_bytes_.size();
+      const bool mb = total >= 100'000;  // small scenes in bytes, not "0.0 MB"
+      const auto amount = [mb](std::uint64_t n) {
+        return mb ? fmt::format("{:.1f}", static_cast<double>(n) / 1e6) : std::to_string(n);
+      };
+      const char* unit = mb ? "MB" : "bytes";
       std::string loading;
       for (const auto& [id, w] : workers_) {
         if (w->state != Worker::State::Scene) continue;
-        const std::size_t total = scene_bytes_.size();
-        const bool mb = total >= 100'000;
-        const auto amount = [mb](std::uint64_t n) {
-          return mb ? fmt::format("{:.1f}", static_cast<double>(n) / 1e6) : std::to_string(n);
-        };
         const std::string how = w->scene_offset >= total
-                                    ? fmt::format("all {} {} sent, loading", amount(total), mb ? "MB" : "bytes")
-                                    : fmt::format("{} of {} {} sent", amount(w->scene_offset), amount(total),
-                                                  mb ? "MB" : "bytes");
+                                    ? fmt::format("all {} {} sent, loading", amount(total), unit)
+                                    : fmt::format("{} of {} {} sent", amount(w->scene_offset), amount(total), unit);
         loading += fmt::format("{} {}: {}", loading.empty() ? "; still taking the scene:" : ";", w->describe(), how);
       }
       fatal(fmt::format("{} of the {} needed ready after {}: giving up before the first frame{}", ready_workers(),

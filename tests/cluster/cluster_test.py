@@ -2461,7 +2461,7 @@ def case_master_gives_up_waiting(c):
     m1, addr, _ = c.start_master("one", [*SMALL, "--frames", "0", "--min-workers", "2", "--wait-seconds",
                                          f"{wait_one:g}"])
     w1 = c.start_worker("one-w", addr, 1)
-    # and a third that asks for the scene and never says it has loaded it: the line names it.
+    # and a second that asks for the scene and never says it has loaded it: the line names it.
     slow = FakeWorker(addr, "one-slow")
     slow.join(have_scene=False)
     gave_up(m1, r"1 of the 2 workers needed ready after " + re.escape(f"{wait_one:g}") + r" s \(--wait-seconds\): "
